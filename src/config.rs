@@ -1,0 +1,452 @@
+//! The configuration file: one TOML document, every key optional.
+//!
+//! Unknown keys are refused (`deny_unknown_fields`), and `validate` refuses
+//! bad values with a message that names the key. `config/gyrocomp.toml` is
+//! the annotated full example; `gyrocomp check-config FILE` prints the
+//! effective configuration.
+
+use crate::adis::{builtin_profile, InputIds, Profile, BUILTIN_PROFILES};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read config {path}: {source}")]
+    Io { path: String, source: std::io::Error },
+    #[error("config {path}: {msg}")]
+    Parse { path: String, msg: String },
+    #[error("config {path}: {key}: {msg}")]
+    Invalid { path: String, key: String, msg: String },
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    pub input: InputConfig,
+    pub can: CanConfig,
+    pub estimator: EstimatorConfig,
+    pub ekf: EkfConfig,
+    pub switching: SwitchingConfig,
+    pub thermal: ThermalConfig,
+    pub output: OutputConfig,
+    pub daemon: DaemonConfig,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct InputConfig {
+    /// Part profile: adis16448 (default), adis16405, adis16465-1.
+    pub profile: String,
+    /// Sample rate, Hz; 0 = the profile's nominal rate.
+    pub rate_hz: f64,
+    /// Input frame IDs.
+    pub ids: InputIds,
+    /// Overrides of the profile's scales (None = the profile's value).
+    pub gyro_lsb: Option<f64>,
+    pub accel_lsb: Option<f64>,
+    pub magn_lsb: Option<f64>,
+    pub temp_lsb: Option<f64>,
+    pub temp_offset: Option<f64>,
+}
+
+impl Default for InputConfig {
+    fn default() -> Self {
+        InputConfig {
+            profile: "adis16448".into(),
+            rate_hz: 0.0,
+            ids: InputIds::DEFAULT,
+            gyro_lsb: None,
+            accel_lsb: None,
+            magn_lsb: None,
+            temp_lsb: None,
+            temp_offset: None,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CanConfig {
+    /// SocketCAN interface the daemon reads and writes.
+    pub interface: String,
+}
+
+impl Default for CanConfig {
+    fn default() -> Self {
+        CanConfig { interface: "can0".into() }
+    }
+}
+
+/// Which estimator runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// Paper case 1: gyro with the start-up-average bias, no thermal curve.
+    StartupAverage,
+    /// Paper case 2: start-up-average bias plus the thermal curve.
+    StartupThermal,
+    /// Paper case 3: EKF + thermal curve anchored at the last EKF bias + switching, as published.
+    Paper,
+}
+
+impl Mode {
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::StartupAverage => "startup_average",
+            Mode::StartupThermal => "startup_thermal",
+            Mode::Paper => "paper",
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EstimatorConfig {
+    pub mode: Mode,
+    /// Seconds after power-on over which g0 = mean |a| is measured.
+    pub g0_window_s: f64,
+    /// Seconds after power-on that never teach the bias (warm-up exclusion).
+    pub warmup_s: f64,
+    /// Length of the learning window after warm-up, seconds; the mean EKF bias
+    /// over it (quasi-static samples only) becomes the initial bias.
+    pub learn_s: f64,
+    /// Magnetic declination, deg (east positive), added to the magnetometer heading.
+    pub declination_deg: f64,
+    /// Use the magnetometer for yaw (ignored for parts without one).
+    pub use_magnetometer: bool,
+    /// A counter gap longer than this is a resync (no integration over it), seconds.
+    pub max_gap_s: f64,
+}
+
+impl Default for EstimatorConfig {
+    fn default() -> Self {
+        EstimatorConfig {
+            mode: Mode::Paper,
+            g0_window_s: 1.0,
+            warmup_s: 10.0,
+            learn_s: 60.0,
+            declination_deg: 0.0,
+            use_magnetometer: true,
+            max_gap_s: 0.1,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EkfConfig {
+    /// Gyro white noise density, deg/s/sqrt(Hz) (process noise on the angles).
+    pub gyro_noise: f64,
+    /// Bias random walk, deg/s/sqrt(s) (process noise on the bias).
+    pub bias_walk: f64,
+    /// 1-sigma of roll/pitch from the accelerometer, deg.
+    pub tilt_sigma_deg: f64,
+    /// 1-sigma of the magnetometer heading, deg.
+    pub yaw_sigma_deg: f64,
+    /// Initial 1-sigma of the bias, deg/s.
+    pub init_bias_sigma: f64,
+    /// Initial 1-sigma of the angles, deg.
+    pub init_angle_sigma_deg: f64,
+}
+
+impl Default for EkfConfig {
+    fn default() -> Self {
+        EkfConfig {
+            gyro_noise: 0.02,
+            bias_walk: 0.0005,
+            tilt_sigma_deg: 1.0,
+            yaw_sigma_deg: 3.0,
+            init_bias_sigma: 0.5,
+            init_angle_sigma_deg: 5.0,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SwitchingConfig {
+    /// Inner band on |a|/g0: full fusion with bias learning.
+    pub inner: [f64; 2],
+    /// Outer band on |a|/g0: between inner and outer a weighted blend; outside gyro only.
+    pub outer: [f64; 2],
+    /// Acceleration-change criterion: no fusion when |slope of a| > jerk_ratio * mean|a| per second.
+    pub jerk_ratio: f64,
+    /// Window over which the slope and mean of the acceleration are taken, seconds.
+    pub jerk_window_s: f64,
+}
+
+impl Default for SwitchingConfig {
+    fn default() -> Self {
+        SwitchingConfig { inner: [0.985, 1.015], outer: [0.80, 1.20], jerk_ratio: 0.20, jerk_window_s: 1.0 }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ThermalConfig {
+    /// Reference temperature of the curve, deg C.
+    pub t0: f64,
+    /// Slope per axis, deg/s per deg C.
+    pub p1: [f64; 3],
+    /// Bias at t0 per axis, deg/s.
+    pub p2: [f64; 3],
+}
+
+impl Default for ThermalConfig {
+    fn default() -> Self {
+        ThermalConfig { t0: 25.0, p1: [0.0; 3], p2: [0.0; 3] }
+    }
+}
+
+/// Output frame IDs (the DBC describes the defaults).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutputConfig {
+    pub rate_id: u32,
+    pub attitude_id: u32,
+    pub bias_id: u32,
+    pub status_id: u32,
+}
+
+impl Default for OutputConfig {
+    fn default() -> Self {
+        OutputConfig { rate_id: 0x110, attitude_id: 0x111, bias_id: 0x112, status_id: 0x113 }
+    }
+}
+
+/// Daemon-only settings (ignored by replay).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DaemonConfig {
+    /// Directory of the state file; empty = $STATE_DIRECTORY, else no state.
+    pub state_dir: String,
+    /// Seconds between state saves.
+    pub save_every_s: f64,
+    /// Seconds without a sample before the bus is reported silent.
+    pub silent_after_s: f64,
+    /// Receive CAN error frames and count them.
+    pub error_frames: bool,
+}
+
+impl Default for DaemonConfig {
+    fn default() -> Self {
+        DaemonConfig { state_dir: String::new(), save_every_s: 10.0, silent_after_s: 0.5, error_frames: false }
+    }
+}
+
+impl Config {
+    /// Read, parse and validate a config file.
+    pub fn load(path: &Path) -> Result<Config, ConfigError> {
+        let p = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io { path: p.clone(), source })?;
+        Config::parse(&text, &p)
+    }
+
+    /// Parse and validate config text; `origin` names it in errors.
+    pub fn parse(text: &str, origin: &str) -> Result<Config, ConfigError> {
+        let cfg: Config =
+            toml::from_str(text).map_err(|e| ConfigError::Parse { path: origin.into(), msg: e.to_string() })?;
+        cfg.validate().map_err(|(key, msg)| ConfigError::Invalid { path: origin.into(), key, msg })?;
+        Ok(cfg)
+    }
+
+    /// The effective profile: the named built-in with the overrides applied.
+    pub fn profile(&self) -> Profile {
+        let mut p = builtin_profile(&self.input.profile).unwrap_or_else(|| builtin_profile("adis16448").unwrap());
+        let i = &self.input;
+        if i.rate_hz > 0.0 {
+            p.rate_hz = i.rate_hz;
+        }
+        p.gyro_lsb = i.gyro_lsb.unwrap_or(p.gyro_lsb);
+        p.accel_lsb = i.accel_lsb.unwrap_or(p.accel_lsb);
+        p.magn_lsb = i.magn_lsb.unwrap_or(p.magn_lsb);
+        p.temp_lsb = i.temp_lsb.unwrap_or(p.temp_lsb);
+        p.temp_offset = i.temp_offset.unwrap_or(p.temp_offset);
+        p
+    }
+
+    /// The effective config as TOML text.
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).unwrap_or_else(|e| format!("# cannot serialise: {e}\n"))
+    }
+
+    /// Check every value; on failure returns (key, message).
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        fn err<T>(key: &str, msg: impl Into<String>) -> Result<T, (String, String)> {
+            Err((key.to_string(), msg.into()))
+        }
+        fn finite(key: &str, v: f64) -> Result<(), (String, String)> {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                err(key, format!("must be a finite number, got {v}"))
+            }
+        }
+        fn positive(key: &str, v: f64) -> Result<(), (String, String)> {
+            finite(key, v)?;
+            if v > 0.0 {
+                Ok(())
+            } else {
+                err(key, format!("must be > 0, got {v}"))
+            }
+        }
+        fn non_negative(key: &str, v: f64) -> Result<(), (String, String)> {
+            finite(key, v)?;
+            if v >= 0.0 {
+                Ok(())
+            } else {
+                err(key, format!("must be >= 0, got {v}"))
+            }
+        }
+        fn band(key: &str, b: [f64; 2]) -> Result<(), (String, String)> {
+            finite(key, b[0])?;
+            finite(key, b[1])?;
+            if b[0] <= 0.0 {
+                return err(key, format!("lo must be > 0, got {}", b[0]));
+            }
+            if b[0] >= b[1] {
+                return err(key, format!("lo ({}) must be < hi ({})", b[0], b[1]));
+            }
+            Ok(())
+        }
+        fn id(key: &str, v: u32) -> Result<(), (String, String)> {
+            if v > 0x7FF {
+                return err(key, format!("must be an 11-bit CAN ID (0..=0x7FF), got {v:#x}"));
+            }
+            Ok(())
+        }
+
+        let i = &self.input;
+        if builtin_profile(&i.profile).is_none() {
+            return err("input.profile", format!("unknown profile {:?} (known: {})", i.profile, BUILTIN_PROFILES.join(", ")));
+        }
+        non_negative("input.rate_hz", i.rate_hz)?;
+        for (k, v) in [("input.gyro_lsb", i.gyro_lsb), ("input.accel_lsb", i.accel_lsb), ("input.temp_lsb", i.temp_lsb)] {
+            if let Some(v) = v {
+                positive(k, v)?;
+            }
+        }
+        if let Some(v) = i.magn_lsb {
+            non_negative("input.magn_lsb", v)?;
+        }
+        if let Some(v) = i.temp_offset {
+            finite("input.temp_offset", v)?;
+        }
+        let ids = i.ids.all();
+        for (k, v) in ["input.ids.gyro", "input.ids.accel", "input.ids.magn", "input.ids.aux"].iter().zip(ids) {
+            id(k, v)?;
+        }
+        for a in 0..4 {
+            for b in a + 1..4 {
+                if ids[a] == ids[b] {
+                    return err("input.ids", format!("the four input IDs must differ, {:#x} appears twice", ids[a]));
+                }
+            }
+        }
+        if self.can.interface.is_empty() || self.can.interface.len() > 15 {
+            return err("can.interface", "must be an interface name of 1 to 15 characters");
+        }
+        let e = &self.estimator;
+        positive("estimator.g0_window_s", e.g0_window_s)?;
+        non_negative("estimator.warmup_s", e.warmup_s)?;
+        non_negative("estimator.learn_s", e.learn_s)?;
+        finite("estimator.declination_deg", e.declination_deg)?;
+        if e.declination_deg.abs() > 180.0 {
+            return err("estimator.declination_deg", "must be within -180..180");
+        }
+        positive("estimator.max_gap_s", e.max_gap_s)?;
+        let k = &self.ekf;
+        positive("ekf.gyro_noise", k.gyro_noise)?;
+        non_negative("ekf.bias_walk", k.bias_walk)?;
+        positive("ekf.tilt_sigma_deg", k.tilt_sigma_deg)?;
+        positive("ekf.yaw_sigma_deg", k.yaw_sigma_deg)?;
+        positive("ekf.init_bias_sigma", k.init_bias_sigma)?;
+        positive("ekf.init_angle_sigma_deg", k.init_angle_sigma_deg)?;
+        let s = &self.switching;
+        band("switching.inner", s.inner)?;
+        band("switching.outer", s.outer)?;
+        if !(s.outer[0] <= s.inner[0] && s.inner[1] <= s.outer[1]) {
+            return err(
+                "switching.inner",
+                format!("inner band {:?} must lie inside the outer band {:?}", s.inner, s.outer),
+            );
+        }
+        if !(s.inner[0] <= 1.0 && 1.0 <= s.inner[1]) {
+            return err("switching.inner", format!("inner band {:?} must contain 1.0 (|a| = g0)", s.inner));
+        }
+        positive("switching.jerk_ratio", s.jerk_ratio)?;
+        positive("switching.jerk_window_s", s.jerk_window_s)?;
+        let t = &self.thermal;
+        finite("thermal.t0", t.t0)?;
+        for a in 0..3 {
+            finite(&format!("thermal.p1[{a}]"), t.p1[a])?;
+            finite(&format!("thermal.p2[{a}]"), t.p2[a])?;
+        }
+        let o = &self.output;
+        let oids = [o.rate_id, o.attitude_id, o.bias_id, o.status_id];
+        for (k, v) in ["output.rate_id", "output.attitude_id", "output.bias_id", "output.status_id"].iter().zip(oids) {
+            id(k, v)?;
+            if ids.contains(&v) {
+                return err(k, format!("{v:#x} is also an input ID"));
+            }
+        }
+        for a in 0..4 {
+            for b in a + 1..4 {
+                if oids[a] == oids[b] {
+                    return err("output", format!("the four output IDs must differ, {:#x} appears twice", oids[a]));
+                }
+            }
+        }
+        let d = &self.daemon;
+        positive("daemon.save_every_s", d.save_every_s)?;
+        positive("daemon.silent_after_s", d.silent_after_s)?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bad(text: &str) -> String {
+        Config::parse(text, "t.toml").unwrap_err().to_string()
+    }
+
+    #[test]
+    fn empty_is_default_and_valid() {
+        let c = Config::parse("", "t.toml").unwrap();
+        assert_eq!(c, Config::default());
+        assert_eq!(c.profile().rate_hz, 204.8);
+        // the printed effective config parses back to the same value
+        assert_eq!(Config::parse(&c.to_toml(), "x").unwrap(), c);
+    }
+
+    #[test]
+    fn refuses_bad_values_naming_the_key() {
+        assert!(bad("[switching]\ninner = [1.02, 1.01]").contains("switching.inner"));
+        assert!(bad("[switching]\ninner = [0.7, 1.01]").contains("switching.inner"));
+        assert!(bad("[switching]\nouter = [nan, 1.2]").contains("switching.outer"));
+        assert!(bad("[input]\nrate_hz = -5.0").contains("input.rate_hz"));
+        assert!(bad("[input]\nprofile = \"adis9999\"").contains("input.profile"));
+        assert!(bad("[thermal]\np1 = [0.0, inf, 0.0]").contains("thermal.p1[1]"));
+        assert!(bad("[estimator]\nmode = \"magic\"").contains("mode"));
+        assert!(bad("[output]\nrate_id = 0x100").contains("output.rate_id"));
+    }
+
+    #[test]
+    fn refuses_unknown_keys() {
+        let e = bad("[switching]\ninnr = [0.9, 1.1]");
+        assert!(e.contains("innr"), "{e}");
+        let e = bad("[swtching]\n");
+        assert!(e.contains("swtching"), "{e}");
+    }
+
+    #[test]
+    fn overrides_apply() {
+        let c = Config::parse("[input]\nprofile = \"adis16405\"\nrate_hz = 100.0\ngyro_lsb = 0.02", "t").unwrap();
+        let p = c.profile();
+        assert_eq!(p.rate_hz, 100.0);
+        assert_eq!(p.gyro_lsb, 0.02);
+        assert_eq!(p.accel_lsb, 3.33e-3);
+    }
+}

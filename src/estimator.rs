@@ -1,0 +1,491 @@
+//! The estimator: `step(sample) -> estimate`. Pure: no I/O, no clock, no
+//! allocation per step. The daemon and `gyrocomp replay` both call it.
+//!
+//! Modes (`[estimator] mode`):
+//! - `paper`: the published method. EKF bias learning in the inner band,
+//!   weighted blend between the bands, gyro only outside with the thermal
+//!   curve anchored at the last EKF bias; jerk criterion; warm-up exclusion;
+//!   the mean EKF bias over the learning window becomes the initial bias.
+//! - `startup_thermal`, `startup_average`: the paper's comparison cases 2 and
+//!   1: the gyro integrated with the bias averaged over the learning window,
+//!   with / without the thermal curve; no fusion at all.
+
+use crate::adis::Sample;
+use crate::config::{Config, Mode};
+use crate::ekf::{heading_from_mag, tilt_from_accel, wrap_pi, Ekf, Learn};
+use crate::switching::{Band, Switching};
+use crate::thermal::Thermal;
+use nalgebra::Vector3;
+
+const D2R: f64 = std::f64::consts::PI / 180.0;
+const R2D: f64 = 180.0 / std::f64::consts::PI;
+
+/// Health flags carried in `EST_STATUS` (bit numbers are the DBC's).
+pub mod flags {
+    /// DIAG_STAT != 0: the sample was not fused.
+    pub const SUSPECT: u16 = 1 << 0;
+    /// Inside the warm-up exclusion: the bias is not learned.
+    pub const WARMUP: u16 = 1 << 1;
+    /// Inside the learning window.
+    pub const LEARNING: u16 = 1 << 2;
+    /// A counter gap or restart: attitude was not integrated over it.
+    pub const RESYNC: u16 = 1 << 3;
+    /// The acceleration-change criterion fired.
+    pub const JERK: u16 = 1 << 4;
+    /// Temperature outside the thermal curve's calibrated range (clamped).
+    pub const THERMAL_CLAMP: u16 = 1 << 5;
+    /// An output rate saturated its signal range.
+    pub const RATE_SAT: u16 = 1 << 6;
+    /// No input sample for `daemon.silent_after_s` (set by the daemon).
+    pub const BUS_SILENT: u16 = 1 << 7;
+    /// g0 is still being measured.
+    pub const INIT: u16 = 1 << 8;
+    /// A measurement was refused by the innovation gate.
+    pub const GATED: u16 = 1 << 9;
+    /// Output frames were dropped on write since the last status (set by the daemon).
+    pub const TX_DROP: u16 = 1 << 10;
+}
+
+/// What the estimator says about one sample. Angles deg, rates deg/s.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Estimate {
+    pub cnt: u16,
+    pub t_us: u64,
+    /// Seconds since the first sample, from the sample counter.
+    pub t: f64,
+    pub roll: f64,
+    pub pitch: f64,
+    pub yaw: f64,
+    /// Bias-corrected rates.
+    pub rate: [f64; 3],
+    pub bias: [f64; 3],
+    /// 0 fusion (inner band), 1 blend, 2 gyro only / thermal.
+    pub mode: u8,
+    pub temp: f64,
+    pub flags: u16,
+    /// |a| / g0.
+    pub ratio: f64,
+}
+
+/// What the estimator learned, for the daemon's state file.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Learned {
+    /// Bias, deg/s.
+    pub bias: [f64; 3],
+    /// 1-sigma of the bias, deg/s.
+    pub bias_sigma: [f64; 3],
+    /// Temperature at which the bias was held, deg C.
+    pub temp: f64,
+}
+
+#[derive(Clone, Debug)]
+pub struct Estimator {
+    mode: Mode,
+    period: f64,
+    max_gap: f64,
+    g0_window: f64,
+    warmup: f64,
+    learn_end: f64,
+    declination: f64,
+    use_mag: bool,
+    q_gyro: f64,
+    q_bias: f64,
+    r_tilt: f64,
+    r_yaw: f64,
+    angle_sigma: f64,
+    bias_sigma: f64,
+    thermal: Thermal,
+    switching: Switching,
+    ekf: Ekf,
+    started: bool,
+    t: f64,
+    g0: f64,
+    g0_sum: f64,
+    g0_n: u64,
+    temp_prev: f64,
+    /// Learning-window accumulators (mean EKF bias / mean raw gyro).
+    learn_sum: [f64; 3],
+    learn_temp_sum: f64,
+    learn_n: u64,
+    learn_done: bool,
+    /// A bias given from outside (the daemon's state file) at start.
+    prior: Option<Learned>,
+    /// The bias and temperature of the last quasi-static (mode 0) sample.
+    last_fused: Option<(f64, [f64; 3])>,
+}
+
+impl Estimator {
+    pub fn new(cfg: &Config) -> Estimator {
+        let p = cfg.profile();
+        let e = &cfg.estimator;
+        let k = &cfg.ekf;
+        Estimator {
+            mode: e.mode,
+            period: 1.0 / p.rate_hz,
+            max_gap: e.max_gap_s,
+            g0_window: e.g0_window_s,
+            warmup: e.warmup_s,
+            learn_end: e.warmup_s + e.learn_s,
+            declination: e.declination_deg * D2R,
+            use_mag: e.use_magnetometer && p.magnetometer,
+            q_gyro: (k.gyro_noise * D2R).powi(2),
+            q_bias: (k.bias_walk * D2R).powi(2),
+            r_tilt: (k.tilt_sigma_deg * D2R).powi(2),
+            r_yaw: (k.yaw_sigma_deg * D2R).powi(2),
+            angle_sigma: k.init_angle_sigma_deg * D2R,
+            bias_sigma: k.init_bias_sigma * D2R,
+            thermal: Thermal::new(&cfg.thermal),
+            switching: Switching::new(&cfg.switching, p.rate_hz),
+            ekf: Ekf::new(Vector3::zeros(), Vector3::zeros(), 1.0, 1.0),
+            started: false,
+            t: 0.0,
+            g0: 1.0,
+            g0_sum: 0.0,
+            g0_n: 0,
+            temp_prev: 0.0,
+            learn_sum: [0.0; 3],
+            learn_temp_sum: 0.0,
+            learn_n: 0,
+            learn_done: false,
+            prior: None,
+            last_fused: None,
+        }
+    }
+
+    /// Start from a bias learned earlier (loaded before the first sample).
+    /// It replaces the thermal curve's absolute value as the prior; the
+    /// learning window still runs and refines it.
+    pub fn set_prior(&mut self, prior: Learned) {
+        self.prior = Some(prior);
+    }
+
+    /// The bias the estimator holds now and at what temperature, for saving.
+    /// Prefers the bias of the last quasi-static sample (what the EKF learned).
+    pub fn learned(&self) -> Option<Learned> {
+        if !self.started {
+            return self.prior;
+        }
+        let (temp, bias) = match self.last_fused {
+            Some(lf) => lf,
+            None => return self.prior,
+        };
+        let s = |i: usize| self.ekf.pbb[(i, i)].max(0.0).sqrt() * R2D;
+        Some(Learned { bias, bias_sigma: [s(0), s(1), s(2)], temp })
+    }
+
+    pub fn g0(&self) -> f64 {
+        self.g0
+    }
+
+    fn measure(&self, s: &Sample, roll: f64, pitch: f64) -> Vector3<f64> {
+        let (r, p) = tilt_from_accel(&s.accel);
+        let y = if self.use_mag { wrap_pi(heading_from_mag(&s.magn, roll, pitch) + self.declination) } else { 0.0 };
+        Vector3::new(r, p, y)
+    }
+
+    fn start(&mut self, s: &Sample) {
+        let (r, p) = tilt_from_accel(&s.accel);
+        let z = self.measure(s, r, p);
+        let bias = match (&self.prior, self.mode) {
+            (Some(pr), _) => {
+                let d = self.thermal.delta(pr.temp, s.temp);
+                [pr.bias[0] + d[0], pr.bias[1] + d[1], pr.bias[2] + d[2]]
+            }
+            (None, Mode::StartupAverage) => [0.0; 3],
+            (None, _) => self.thermal.bias(s.temp),
+        };
+        let b = Vector3::from(bias) * D2R;
+        self.ekf = Ekf::new(z, b, self.angle_sigma, self.bias_sigma);
+        if let Some(pr) = &self.prior {
+            for i in 0..3 {
+                let sig = (pr.bias_sigma[i] * D2R).max(1e-4 * D2R);
+                self.ekf.pbb[(i, i)] = sig * sig;
+            }
+        }
+        self.temp_prev = s.temp;
+        self.started = true;
+        self.t = 0.0;
+    }
+
+    /// Step the estimator on one sample.
+    pub fn step(&mut self, s: &Sample) -> Estimate {
+        let mut fl = 0u16;
+        let mut dt = s.steps as f64 * self.period;
+        if !self.started {
+            self.start(s);
+            dt = 0.0;
+        } else if s.steps == 0 || dt > self.max_gap {
+            // Unknown or long gap: do not integrate the gyro across it.
+            fl |= flags::RESYNC;
+            dt = self.period;
+            self.ekf.inflate_angles((5.0 * D2R).powi(2));
+            self.switching.reset();
+        }
+        self.t += dt;
+        let t = self.t;
+
+        // g0: mean |a| over the first g0_window seconds.
+        let amag = (s.accel[0] * s.accel[0] + s.accel[1] * s.accel[1] + s.accel[2] * s.accel[2]).sqrt();
+        if t < self.g0_window || self.g0_n == 0 {
+            if amag > 0.0 {
+                self.g0_sum += amag;
+                self.g0_n += 1;
+                self.g0 = self.g0_sum / self.g0_n as f64;
+            }
+            fl |= flags::INIT;
+        }
+
+        // Predict: the gyro drives the angles; the thermal curve moves the bias.
+        let omega = Vector3::new(s.gyro[0], s.gyro[1], s.gyro[2]) * D2R;
+        let thermal_on = self.mode != Mode::StartupAverage;
+        let db = if thermal_on { Vector3::from(self.thermal.delta(self.temp_prev, s.temp)) * D2R } else { Vector3::zeros() };
+        self.temp_prev = s.temp;
+        if dt > 0.0 {
+            self.ekf.predict(&omega, dt, self.q_gyro, self.q_bias, &db);
+        } else {
+            self.ekf.bias += db;
+        }
+
+        let dec = self.switching.classify(&s.accel, self.g0);
+        if dec.jerk {
+            fl |= flags::JERK;
+        }
+        let warm = t < self.warmup;
+        let learning = !warm && !self.learn_done;
+        if warm {
+            fl |= flags::WARMUP;
+        }
+        if learning {
+            fl |= flags::LEARNING;
+        }
+
+        let mut mode = 2u8;
+        match self.mode {
+            Mode::Paper => {
+                if s.suspect() {
+                    fl |= flags::SUSPECT;
+                } else if !dec.jerk && dec.band != Band::Outside {
+                    let z = self.measure(s, self.ekf.att[0], self.ekf.att[1]);
+                    if dec.band == Band::Inner {
+                        let r = Vector3::new(self.r_tilt, self.r_tilt, self.r_yaw);
+                        let learn = if warm { Learn::AnglesOnly } else { Learn::AnglesAndBias };
+                        self.ekf.update(&z, &r, self.use_mag, learn);
+                        mode = 0;
+                        if !warm {
+                            self.last_fused = Some((s.temp, self.bias_deg()));
+                        }
+                    } else {
+                        // Blend: the accelerometer's weight falls linearly from the
+                        // inner to the outer band edge; its noise grows as 1/w.
+                        let w = dec.weight.max(1e-3);
+                        let r = Vector3::new(self.r_tilt / w, self.r_tilt / w, self.r_yaw / w);
+                        self.ekf.update(&z, &r, self.use_mag, Learn::AnglesOnly);
+                        mode = 1;
+                    }
+                }
+                if learning && mode == 0 {
+                    let b = self.bias_deg();
+                    for k in 0..3 {
+                        self.learn_sum[k] += b[k];
+                    }
+                    self.learn_temp_sum += s.temp;
+                    self.learn_n += 1;
+                }
+            }
+            Mode::StartupAverage | Mode::StartupThermal => {
+                if s.suspect() {
+                    fl |= flags::SUSPECT;
+                } else if learning {
+                    for k in 0..3 {
+                        self.learn_sum[k] += s.gyro[k];
+                    }
+                    self.learn_temp_sum += s.temp;
+                    self.learn_n += 1;
+                }
+            }
+        }
+
+        if !self.learn_done && t >= self.learn_end && !warm {
+            self.learn_done = true;
+            if self.learn_n > 0 {
+                // The window's mean becomes the bias, carried by the thermal
+                // curve from the window's mean temperature to now.
+                let n = self.learn_n as f64;
+                let tm = self.learn_temp_sum / n;
+                let d = if thermal_on { self.thermal.delta(tm, s.temp) } else { [0.0; 3] };
+                for k in 0..3 {
+                    self.ekf.bias[k] = (self.learn_sum[k] / n + d[k]) * D2R;
+                }
+                if self.mode == Mode::Paper {
+                    self.last_fused = Some((s.temp, self.bias_deg()));
+                }
+            }
+        }
+
+        if !self.ekf.is_finite() {
+            // Cannot happen with finite input; never let a NaN reach the bus.
+            self.started = false;
+            self.start(s);
+            fl |= flags::RESYNC;
+        }
+
+        let bias = self.bias_deg();
+        Estimate {
+            cnt: s.cnt,
+            t_us: s.t_us,
+            t,
+            roll: self.ekf.att[0] * R2D,
+            pitch: self.ekf.att[1] * R2D,
+            yaw: self.ekf.att[2] * R2D,
+            rate: [s.gyro[0] - bias[0], s.gyro[1] - bias[1], s.gyro[2] - bias[2]],
+            bias,
+            mode,
+            temp: s.temp,
+            flags: fl,
+            ratio: dec.ratio,
+        }
+    }
+
+    fn bias_deg(&self) -> [f64; 3] {
+        [self.ekf.bias[0] * R2D, self.ekf.bias[1] * R2D, self.ekf.bias[2] * R2D]
+    }
+
+    /// The EKF (for tests and diagnostics).
+    pub fn ekf(&self) -> &Ekf {
+        &self.ekf
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::adis::Sample;
+
+    /// A unit at rest, level, heading `yaw_deg`, with a constant gyro bias.
+    fn rest(cnt: u16, bias: [f64; 3], yaw_deg: f64, temp: f64) -> Sample {
+        let psi = yaw_deg * D2R;
+        Sample {
+            cnt,
+            t_us: 0,
+            steps: if cnt == 0 { 0 } else { 1 },
+            gyro: bias,
+            accel: [0.0, 0.0, -1.0],
+            magn: [0.2 * psi.cos(), -0.2 * psi.sin(), 0.4],
+            temp,
+            diag: 0,
+        }
+    }
+
+    fn cfg(text: &str) -> Config {
+        Config::parse(text, "test").unwrap()
+    }
+
+    #[test]
+    fn learns_a_constant_bias_at_rest() {
+        let c = cfg("[estimator]\nwarmup_s = 2.0\nlearn_s = 20.0");
+        let mut e = Estimator::new(&c);
+        let bias = [0.3, -0.2, 0.45];
+        let mut last = Estimate::default();
+        for k in 0..(204.8 * 40.0) as u32 {
+            last = e.step(&rest(k as u16, bias, 30.0, 25.0));
+        }
+        for i in 0..3 {
+            assert!((last.bias[i] - bias[i]).abs() < 0.01, "axis {i}: {:?}", last.bias);
+            assert!(last.rate[i].abs() < 0.01);
+        }
+        assert!(last.roll.abs() < 0.05 && last.pitch.abs() < 0.05);
+        assert!((last.yaw - 30.0).abs() < 0.2, "yaw {}", last.yaw);
+        assert_eq!(last.mode, 0);
+        assert_eq!(last.flags & (flags::WARMUP | flags::LEARNING), 0);
+    }
+
+    #[test]
+    fn warmup_samples_do_not_teach_the_bias() {
+        let c = cfg("[estimator]\nwarmup_s = 5.0\nlearn_s = 5.0");
+        let mut e = Estimator::new(&c);
+        let mut est = Estimate::default();
+        for k in 0..(204.8 * 4.5) as u32 {
+            est = e.step(&rest(k as u16, [0.5, 0.5, 0.5], 0.0, 25.0));
+            assert!(est.flags & flags::WARMUP != 0);
+        }
+        assert_eq!(est.bias, [0.0; 3]);
+    }
+
+    #[test]
+    fn thermal_curve_is_anchored_at_the_last_ekf_bias() {
+        // Learn at 25 C, then go out of band (|a| = 1.5 g) and warm by 10 C:
+        // the bias must be the learned one plus p1 * 10, not p1 (T - t0) + p2.
+        let c = cfg("[estimator]\nwarmup_s = 1.0\nlearn_s = 10.0\n[thermal]\nt0 = 0.0\np1 = [0.002, 0.0044, 0.0192]\np2 = [1.0, 1.0, 1.0]");
+        let mut e = Estimator::new(&c);
+        let b0 = [0.1, -0.1, 0.2];
+        let n = (204.8 * 90.0) as u32;
+        let mut cnt = 0u16;
+        for _ in 0..n {
+            e.step(&rest(cnt, b0, 0.0, 25.0));
+            cnt = cnt.wrapping_add(1);
+        }
+        let held = e.learned().unwrap();
+        for i in 0..3 {
+            assert!((held.bias[i] - b0[i]).abs() < 0.01, "{:?}", held);
+        }
+        let mut est = Estimate::default();
+        for k in 0..1000 {
+            let mut s = rest(cnt, b0, 0.0, 25.0 + 10.0 * k as f64 / 999.0);
+            s.accel = [0.0, 0.0, -1.5];
+            est = e.step(&s);
+            cnt = cnt.wrapping_add(1);
+            assert_eq!(est.mode, 2);
+        }
+        let p1 = [0.002, 0.0044, 0.0192];
+        for i in 0..3 {
+            let want = held.bias[i] + p1[i] * (35.0 - held.temp);
+            assert!((est.bias[i] - want).abs() < 1e-9, "axis {i}: {} vs {want}", est.bias[i]);
+        }
+    }
+
+    #[test]
+    fn startup_average_ignores_thermal_and_fusion() {
+        let c = cfg("[estimator]\nmode = \"startup_average\"\nwarmup_s = 1.0\nlearn_s = 5.0\n[thermal]\np1 = [0.1, 0.1, 0.1]");
+        let mut e = Estimator::new(&c);
+        let mut est = Estimate::default();
+        for k in 0..(204.8 * 10.0) as u32 {
+            est = e.step(&rest(k as u16, [0.2, 0.0, -0.3], 0.0, 25.0 + k as f64 * 0.001));
+            assert_eq!(est.mode, 2);
+        }
+        assert!((est.bias[0] - 0.2).abs() < 1e-9 && (est.bias[2] + 0.3).abs() < 1e-9);
+    }
+
+    #[test]
+    fn suspect_and_out_of_band_samples_are_not_fused() {
+        let c = cfg("[estimator]\ng0_window_s = 0.001");
+        let mut e = Estimator::new(&c);
+        e.step(&rest(0, [0.0; 3], 0.0, 25.0));
+        let mut s = rest(1, [0.0; 3], 0.0, 25.0);
+        s.diag = 4;
+        let est = e.step(&s);
+        assert_eq!(est.mode, 2);
+        assert!(est.flags & flags::SUSPECT != 0);
+        let mut s = rest(2, [0.0; 3], 0.0, 25.0);
+        s.accel = [0.0, 0.0, -1.1];
+        assert_eq!(e.step(&s).mode, 1);
+        s.accel = [0.0, 0.0, -1.25];
+        s.cnt = 3;
+        assert_eq!(e.step(&s).mode, 2);
+    }
+
+    #[test]
+    fn long_gap_is_a_resync_not_an_integration() {
+        let c = cfg("");
+        let mut e = Estimator::new(&c);
+        for k in 0..100u16 {
+            e.step(&rest(k, [0.0; 3], 0.0, 25.0));
+        }
+        let mut s = rest(1100, [0.0; 3], 0.0, 25.0);
+        s.gyro = [50.0, 0.0, 0.0];
+        s.steps = 1000;
+        let est = e.step(&s);
+        assert!(est.flags & flags::RESYNC != 0);
+        // integrated over one period, not 4.9 s
+        assert!(est.roll.abs() < 1.0, "roll {}", est.roll);
+    }
+}

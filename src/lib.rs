@@ -1,0 +1,17 @@
+//! gyrocomp: MEMS gyro bias compensation for ADIS-class IMUs on SocketCAN.
+//!
+//! The pure core (no I/O, no tokio): [`adis`] decoding, the estimator
+//! ([`ekf`], [`thermal`], [`switching`], [`estimator`]), [`output`] encoding,
+//! and the [`pipeline`] that chains them. Around it the I/O shell:
+//! [`candump`] log files, [`replay`], and the daemon.
+
+pub mod adis;
+pub mod candump;
+pub mod config;
+pub mod ekf;
+pub mod estimator;
+pub mod output;
+pub mod pipeline;
+pub mod replay;
+pub mod switching;
+pub mod thermal;

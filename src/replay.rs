@@ -1,0 +1,206 @@
+//! `gyrocomp replay`: a candump log through the same pipeline as the daemon.
+//!
+//! Reads `candump -l` lines, pushes every frame into the `Pipeline`, writes the
+//! output frames as a candump log stamped with the time of the input frame
+//! that closed each sample, optionally writes the estimate CSV, and returns a
+//! summary. Bad lines are counted, the first few reported with their line
+//! number, and the replay goes on. Same input + same config = same bytes out.
+
+use crate::adis::{Drop, InputCounters, RawFrame};
+use crate::candump::{parse_line, LineError, LineReader, LogWriter};
+use crate::config::Config;
+use crate::estimator::Estimate;
+use crate::output::OutFrame;
+use crate::pipeline::{Pipeline, Sink};
+use serde::Serialize;
+use std::fs::File;
+use std::io::{self, BufWriter, Read, Write};
+use std::path::Path;
+
+/// How many bad lines are reported one by one before only counting.
+pub const REPORT_BAD_LINES: u64 = 10;
+
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Summary {
+    pub lines: u64,
+    pub bad_lines: u64,
+    pub error_frames: u64,
+    pub input: InputCounters,
+    /// Seconds per mode: fusion, blend, gyro only.
+    pub mode_seconds: [f64; 3],
+    pub mode_samples: [u64; 3],
+    /// The first bad lines: (line number, reason).
+    #[serde(skip)]
+    pub bad_examples: Vec<(u64, LineError)>,
+}
+
+impl Summary {
+    /// The human summary printed to stderr.
+    pub fn render(&self) -> String {
+        let c = &self.input;
+        let total: f64 = self.mode_seconds.iter().sum();
+        let pct = |s: f64| if total > 0.0 { 100.0 * s / total } else { 0.0 };
+        let mut s = String::new();
+        for (n, e) in &self.bad_examples {
+            s += &format!("  bad line {n}: {e}\n");
+        }
+        if self.bad_lines > self.bad_examples.len() as u64 {
+            s += &format!("  ... {} more bad lines\n", self.bad_lines - self.bad_examples.len() as u64);
+        }
+        s += &format!(
+            "lines {} (bad {}), frames {}, error frames {}\nsamples {} (suspect {}), lost {} in {} gaps, counter restarts {}\n",
+            self.lines, self.bad_lines, c.frames, self.error_frames, c.samples, c.suspect, c.lost, c.gaps, c.resyncs
+        );
+        s += "dropped:";
+        for d in Drop::ALL {
+            s += &format!(" {} {}", d.name(), c.get(d));
+        }
+        s += &format!(
+            "\ntime per mode: fusion {:.1} s ({:.1} %), blend {:.1} s ({:.1} %), gyro_only {:.1} s ({:.1} %)\n",
+            self.mode_seconds[0],
+            pct(self.mode_seconds[0]),
+            self.mode_seconds[1],
+            pct(self.mode_seconds[1]),
+            self.mode_seconds[2],
+            pct(self.mode_seconds[2])
+        );
+        s
+    }
+}
+
+/// Where replay output goes.
+pub struct ReplaySink<'a, W: Write, C: Write> {
+    pub log: Option<&'a mut LogWriter<W>>,
+    pub csv: Option<&'a mut C>,
+    /// Every estimate, when the caller wants them in memory (evaluation).
+    pub keep: Option<&'a mut Vec<Estimate>>,
+    pub err: Option<io::Error>,
+}
+
+impl<W: Write, C: Write> Sink for ReplaySink<'_, W, C> {
+    #[inline]
+    fn output(&mut self, est: &Estimate, frames: &[OutFrame; 4]) {
+        if self.err.is_some() {
+            return;
+        }
+        if let Some(log) = self.log.as_deref_mut() {
+            for f in frames {
+                if let Err(e) = log.frame(est.t_us, f.id, &f.data) {
+                    self.err = Some(e);
+                    return;
+                }
+            }
+        }
+        if let Some(csv) = self.csv.as_deref_mut() {
+            if let Err(e) = write_csv_row(csv, est) {
+                self.err = Some(e);
+            }
+        }
+        if let Some(k) = self.keep.as_deref_mut() {
+            k.push(*est);
+        }
+    }
+}
+
+pub const CSV_HEADER: &str = "t,roll,pitch,yaw,rate_x,rate_y,rate_z,bias_x,bias_y,bias_z,mode,temp\n";
+
+pub fn write_csv_row<C: Write>(c: &mut C, e: &Estimate) -> io::Result<()> {
+    writeln!(
+        c,
+        "{:.6},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{:.6},{:.6},{},{:.3}",
+        e.t, e.roll, e.pitch, e.yaw, e.rate[0], e.rate[1], e.rate[2], e.bias[0], e.bias[1], e.bias[2], e.mode, e.temp
+    )
+}
+
+/// Replay a stream through a pipeline into a sink. Returns the summary.
+pub fn run<R: Read, S: Sink>(pipe: &mut Pipeline, input: R, sink: &mut S) -> io::Result<Summary> {
+    let mut rd = LineReader::new(input);
+    let mut sum = Summary::default();
+    while let Some(line) = rd.next_line()? {
+        sum.lines += 1;
+        let parsed = match line {
+            Ok(l) if l.is_empty() => {
+                sum.lines -= 1;
+                continue;
+            }
+            Ok(l) => parse_line(l),
+            Err(e) => Err(e),
+        };
+        match parsed {
+            Ok(f) if f.error => sum.error_frames += 1,
+            Ok(f) => pipe.push(
+                f.t_us,
+                RawFrame { id: f.id, extended: f.extended, remote: f.remote, fd: f.fd, data: f.payload() },
+                sink,
+            ),
+            Err(e) => {
+                sum.bad_lines += 1;
+                if sum.bad_examples.len() < REPORT_BAD_LINES as usize {
+                    sum.bad_examples.push((rd.line_no, e));
+                }
+            }
+        }
+    }
+    sum.input = *pipe.counters();
+    sum.mode_seconds = pipe.mode_seconds();
+    sum.mode_samples = pipe.mode_samples;
+    Ok(sum)
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    #[error("cannot open input {path}: {source}")]
+    Input { path: String, source: io::Error },
+    #[error("cannot write {path}: {source}")]
+    Output { path: String, source: io::Error },
+    #[error("reading {path}: {source}")]
+    Read { path: String, source: io::Error },
+}
+
+/// Files for `replay_files`.
+pub struct ReplayFiles<'a> {
+    pub input: &'a Path,
+    pub output: Option<&'a Path>,
+    pub csv: Option<&'a Path>,
+}
+
+/// Replay a log file to an output log and/or CSV. `keep` collects estimates.
+pub fn replay_files(cfg: &Config, files: &ReplayFiles<'_>, keep: Option<&mut Vec<Estimate>>) -> Result<Summary, ReplayError> {
+    let ip = files.input.display().to_string();
+    let input = File::open(files.input).map_err(|source| ReplayError::Input { path: ip.clone(), source })?;
+    let create = |p: &Path| {
+        File::create(p)
+            .map(|f| BufWriter::with_capacity(1 << 20, f))
+            .map_err(|source| ReplayError::Output { path: p.display().to_string(), source })
+    };
+    let mut log = match files.output {
+        Some(p) => Some(LogWriter::new(create(p)?, &cfg.can.interface)),
+        None => None,
+    };
+    let mut csv = match files.csv {
+        Some(p) => {
+            let mut w = create(p)?;
+            w.write_all(CSV_HEADER.as_bytes())
+                .map_err(|source| ReplayError::Output { path: p.display().to_string(), source })?;
+            Some(w)
+        }
+        None => None,
+    };
+    let mut pipe = Pipeline::new(cfg);
+    let mut sink = ReplaySink { log: log.as_mut(), csv: csv.as_mut(), keep, err: None };
+    let sum = run(&mut pipe, input, &mut sink).map_err(|source| ReplayError::Read { path: ip, source })?;
+    if let Some(e) = sink.err.take() {
+        return Err(ReplayError::Output { path: out_name(files), source: e });
+    }
+    if let Some(l) = log {
+        l.finish().map_err(|source| ReplayError::Output { path: out_name(files), source })?;
+    }
+    if let (Some(mut c), Some(p)) = (csv, files.csv) {
+        c.flush().map_err(|source| ReplayError::Output { path: p.display().to_string(), source })?;
+    }
+    Ok(sum)
+}
+
+fn out_name(files: &ReplayFiles<'_>) -> String {
+    files.output.or(files.csv).map(|p| p.display().to_string()).unwrap_or_default()
+}
