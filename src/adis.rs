@@ -390,13 +390,12 @@ impl Assembler {
         }
         self.stale_run = 0;
         if self.have != 0 && cnt != self.cur_cnt {
-            // A newer sample started before this one completed.
-            if cnt.wrapping_sub(self.cur_cnt) as i16 > 0 {
-                self.have = 0;
-                self.counters.bump(Drop::Partial);
-            } else {
-                return self.drop(Drop::OutOfOrder);
-            }
+            // Another sample (newer than the last accepted one) started before
+            // this one completed: abandon this one. The newcomer wins even when
+            // its counter is lower, so one frame with a corrupted DATA_CNT
+            // costs one sample, not every sample up to the corrupted value.
+            self.have = 0;
+            self.counters.bump(Drop::Partial);
         }
         let bit = 1u8 << (part as u8);
         if self.have & bit != 0 {

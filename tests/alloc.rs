@@ -1,0 +1,60 @@
+//! No heap allocation per sample in the core: a counting global allocator
+//! watches the pipeline (assembly, estimator, encoding) in steady state.
+
+use gyrocomp::adis::{builtin_profile, InputIds, RawFrame, RawSample};
+use gyrocomp::config::Config;
+use gyrocomp::pipeline::{NullSink, Pipeline};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+struct Counting;
+static ALLOCS: AtomicU64 = AtomicU64::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::Relaxed);
+        System.alloc(l)
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        System.dealloc(p, l)
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::Relaxed);
+        System.realloc(p, l, n)
+    }
+}
+
+#[global_allocator]
+static A: Counting = Counting;
+
+#[test]
+fn pipeline_step_does_not_allocate() {
+    let p = builtin_profile("adis16448").unwrap();
+    let frames: Vec<[[u8; 8]; 4]> = (0..50_000u32)
+        .map(|k| {
+            let t = k as f64 / 204.8;
+            let mut r = RawSample::quantise(&p, [0.3 * t.sin(), 0.1, -0.2], [0.01 * t.cos(), 0.0, -1.0], [0.2, 0.0, 0.4], 30.0 + t * 0.01);
+            r.cnt = k as u16;
+            r.encode()
+        })
+        .collect();
+    let cfg = Config::parse("[thermal]\np1 = [0.002, 0.004, 0.019]", "t").unwrap();
+    let mut pipe = Pipeline::new(&cfg);
+    let ids = InputIds::DEFAULT.all();
+    let mut sink = NullSink;
+    // warm-up: the first samples, through warm-up and learning transitions
+    for (k, f) in frames.iter().enumerate().take(20_000) {
+        for i in 0..4 {
+            pipe.push(k as u64, RawFrame::classic(ids[i], &f[i]), &mut sink);
+        }
+    }
+    let before = ALLOCS.load(Ordering::Relaxed);
+    for (k, f) in frames.iter().enumerate().skip(20_000) {
+        for i in 0..4 {
+            pipe.push(k as u64, RawFrame::classic(ids[i], &f[i]), &mut sink);
+        }
+    }
+    let after = ALLOCS.load(Ordering::Relaxed);
+    assert_eq!(pipe.counters().samples, 50_000);
+    assert_eq!(after - before, 0, "{} allocations in 30000 samples", after - before);
+}
