@@ -289,6 +289,12 @@ impl InputCounters {
     pub fn dropped(&self) -> u64 {
         Drop::ALL.iter().map(|d| self.get(*d)).sum()
     }
+    /// Drops that are faults of the IMU stream: all but unknown IDs (on a
+    /// shared vehicle bus other IDs are normal traffic, and the daemon's
+    /// kernel filter never lets them in).
+    pub fn errors(&self) -> u64 {
+        self.dropped() - self.unknown_id
+    }
 }
 
 /// What one pushed frame produced.

@@ -8,6 +8,7 @@
 pub mod adis;
 pub mod candump;
 pub mod config;
+pub mod daemon;
 pub mod ekf;
 pub mod estimator;
 pub mod output;

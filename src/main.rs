@@ -26,6 +26,11 @@ enum Cmd {
     },
     /// Validate a config file and print the effective configuration.
     CheckConfig { file: PathBuf },
+    /// Run the daemon on the bus named by `[can] interface`.
+    Run {
+        #[arg(long)]
+        config: PathBuf,
+    },
 }
 
 fn load_config(p: &Option<PathBuf>) -> Result<Config, String> {
@@ -39,6 +44,10 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.cmd {
         Cmd::Replay { config, input, output, csv } => cmd_replay(config, input, output, csv),
+        Cmd::Run { config } => {
+            init_logging();
+            gyrocomp::daemon::run(&config).map_err(|e| format!("{e:#}"))
+        }
         Cmd::CheckConfig { file } => Config::load(&file).map(|c| print!("{}", c.to_toml())).map_err(|e| e.to_string()),
     };
     match r {
@@ -68,4 +77,19 @@ fn cmd_replay(config: Option<PathBuf>, input: PathBuf, output: Option<PathBuf>, 
         ));
     }
     Ok(())
+}
+
+/// journald when stderr is connected to the journal (systemd sets
+/// JOURNAL_STREAM), plain stderr otherwise. RUST_LOG filters (default info).
+fn init_logging() {
+    use tracing_subscriber::prelude::*;
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into());
+    if std::env::var_os("JOURNAL_STREAM").is_some() {
+        if let Ok(j) = tracing_journald::layer() {
+            tracing_subscriber::registry().with(filter).with(j).init();
+            return;
+        }
+    }
+    use std::io::IsTerminal;
+    tracing_subscriber::fmt().with_env_filter(filter).with_ansi(std::io::stderr().is_terminal()).with_writer(std::io::stderr).init();
 }

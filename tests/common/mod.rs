@@ -7,6 +7,11 @@ use gyrocomp::candump::write_line;
 /// A level unit turning slowly in yaw (and rocking a little in roll) with a
 /// constant gyro bias, `n` samples at the ADIS16448 rate, as candump text.
 pub fn gentle_log(n: u32, bias: [f64; 3], t0_us: u64) -> Vec<u8> {
+    gentle_log_from(n, bias, t0_us, 0)
+}
+
+/// `gentle_log` whose DATA_CNT starts at `cnt0`.
+pub fn gentle_log_from(n: u32, bias: [f64; 3], t0_us: u64, cnt0: u16) -> Vec<u8> {
     let p = builtin_profile("adis16448").unwrap();
     let ids = InputIds::DEFAULT.all();
     let dt = 1.0 / p.rate_hz;
@@ -26,7 +31,7 @@ pub fn gentle_log(n: u32, bias: [f64; 3], t0_us: u64) -> Vec<u8> {
         let (mx, my0, mz0) = (0.2 * cy, -0.2 * sy, 0.4);
         let magn = [mx, cr * my0 + sr * mz0, -sr * my0 + cr * mz0];
         let mut r = RawSample::quantise(&p, gyro, accel, magn, 30.0);
-        r.cnt = k as u16;
+        r.cnt = cnt0.wrapping_add(k as u16);
         let f = r.encode();
         let ts = t0_us + (t * 1e6) as u64;
         for (i, d) in f.iter().enumerate() {
