@@ -26,6 +26,8 @@ enum Cmd {
     },
     /// Validate a config file and print the effective configuration.
     CheckConfig { file: PathBuf },
+    /// Simulate a scenario: DIR/imu.log (ADIS on CAN), truth.csv, sensor.toml, bias.csv, scenario.toml, config.toml.
+    Simulate(gyrocomp::sim::cli::SimulateArgs),
 }
 
 fn load_config(p: &Option<PathBuf>) -> Result<Config, String> {
@@ -40,6 +42,7 @@ fn main() -> ExitCode {
     let r = match cli.cmd {
         Cmd::Replay { config, input, output, csv } => cmd_replay(config, input, output, csv),
         Cmd::CheckConfig { file } => Config::load(&file).map(|c| print!("{}", c.to_toml())).map_err(|e| e.to_string()),
+        Cmd::Simulate(a) => gyrocomp::sim::cli::run(&a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,
