@@ -31,6 +31,8 @@ enum Cmd {
         #[arg(long)]
         config: PathBuf,
     },
+    /// Simulate a scenario: DIR/imu.log (ADIS on CAN), truth.csv, sensor.toml, bias.csv, scenario.toml, config.toml.
+    Simulate(gyrocomp::sim::cli::SimulateArgs),
 }
 
 fn load_config(p: &Option<PathBuf>) -> Result<Config, String> {
@@ -49,6 +51,7 @@ fn main() -> ExitCode {
             gyrocomp::daemon::run(&config).map_err(|e| format!("{e:#}"))
         }
         Cmd::CheckConfig { file } => Config::load(&file).map(|c| print!("{}", c.to_toml())).map_err(|e| e.to_string()),
+        Cmd::Simulate(a) => gyrocomp::sim::cli::run(&a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,1 @@
+//! `gyrocomp evaluate` (placeholder, filled in below).

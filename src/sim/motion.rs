@@ -1,0 +1,391 @@
+//! Truth motion: attitude, body rates and specific force that belong together.
+//!
+//! A ground vehicle is described by its longitudinal and lateral acceleration
+//! commands (g, smooth piecewise profiles), its body roll/pitch (analytic
+//! functions: road and suspension motion, lean in turns, squat/dive, bumps),
+//! and its vertical bumps. Speed `v` and heading `psi` are integrated (RK4 on
+//! a fine sub-step) from `dv/dt = g a_long`, `dpsi/dt = g a_lat / v`; the NED
+//! acceleration is `dv/dt u + v dpsi/dt u_perp + (0, 0, z'')`, so the specific
+//! force `f_b = C_bn (a_n - g_n) / g` is that of a real path, and the body
+//! rates are `E(roll, pitch)^-1 * [roll', pitch', psi']` with the Euler-angle
+//! derivatives taken analytically, so they integrate to the truth attitude.
+//!
+//! Frames: body FRD, NED, Z-Y-X Euler (yaw, pitch, roll).
+
+use std::f64::consts::PI;
+
+/// Standard gravity, m/s^2 (1 g of specific force).
+pub const G: f64 = 9.80665;
+const D2R: f64 = PI / 180.0;
+const R2D: f64 = 180.0 / PI;
+
+/// A profile through knots `(t_i, v_i)`, eased with a half cosine between
+/// consecutive knots (value and slope continuous; slope 0 at the knots),
+/// constant before the first and after the last knot.
+#[derive(Clone, Debug, Default)]
+pub struct Ease {
+    pub knots: Vec<(f64, f64)>,
+}
+
+impl Ease {
+    pub fn constant(v: f64) -> Ease {
+        Ease { knots: vec![(0.0, v)] }
+    }
+
+    /// Append a knot; times must increase.
+    pub fn push(&mut self, t: f64, v: f64) {
+        debug_assert!(self.knots.last().is_none_or(|k| t > k.0));
+        self.knots.push((t, v));
+    }
+
+    pub fn last(&self) -> (f64, f64) {
+        *self.knots.last().unwrap_or(&(0.0, 0.0))
+    }
+
+    /// Value and time derivative at `t`.
+    pub fn eval(&self, t: f64) -> (f64, f64) {
+        let k = &self.knots;
+        if k.is_empty() {
+            return (0.0, 0.0);
+        }
+        if t <= k[0].0 {
+            return (k[0].1, 0.0);
+        }
+        let i = k.partition_point(|p| p.0 <= t);
+        if i >= k.len() {
+            return (k[k.len() - 1].1, 0.0);
+        }
+        let (t0, v0) = k[i - 1];
+        let (t1, v1) = k[i];
+        let d = t1 - t0;
+        let s = (t - t0) / d;
+        let v = v0 + (v1 - v0) * 0.5 * (1.0 - (PI * s).cos());
+        let dv = (v1 - v0) * 0.5 * PI * (PI * s).sin() / d;
+        (v, dv)
+    }
+}
+
+/// `amp sin(2 pi freq t + phase)`.
+#[derive(Clone, Copy, Debug)]
+pub struct Sine {
+    pub amp: f64,
+    pub freq: f64,
+    pub phase: f64,
+}
+
+impl Sine {
+    pub fn eval(&self, t: f64) -> (f64, f64) {
+        let w = 2.0 * PI * self.freq;
+        let a = w * t + self.phase;
+        (self.amp * a.sin(), self.amp * w * a.cos())
+    }
+}
+
+fn sum_sines(s: &[Sine], t: f64) -> (f64, f64) {
+    s.iter().fold((0.0, 0.0), |acc, x| {
+        let (v, d) = x.eval(t);
+        (acc.0 + v, acc.1 + d)
+    })
+}
+
+/// A road bump: vertical acceleration `accel sin(2 pi (t - t0) / dur)` (m/s^2
+/// given in g) over one period (no net vertical velocity), with a pitch pulse
+/// `pitch (1 - cos(2 pi s)) / 2`.
+#[derive(Clone, Copy, Debug)]
+pub struct Bump {
+    pub t0: f64,
+    pub dur: f64,
+    /// g (down positive in NED).
+    pub accel: f64,
+    /// deg.
+    pub pitch: f64,
+}
+
+/// Temperature of the sensor: ambient, self-heating towards a working
+/// temperature with a time constant, and an optional slow drift.
+#[derive(Clone, Copy, Debug)]
+pub struct Thermal {
+    /// Temperature at power-on, deg C.
+    pub ambient: f64,
+    /// Self-heating rise, deg C.
+    pub rise: f64,
+    /// Its time constant, s.
+    pub tau: f64,
+    /// Extra linear drift, deg C/s (ambient change).
+    pub drift: f64,
+}
+
+impl Thermal {
+    pub fn eval(&self, t: f64) -> (f64, f64) {
+        let e = (-t / self.tau).exp();
+        (self.ambient + self.rise * (1.0 - e) + self.drift * t, self.rise * e / self.tau + self.drift)
+    }
+}
+
+/// Everything that defines a truth run.
+#[derive(Clone, Debug)]
+pub struct MotionSpec {
+    pub duration: f64,
+    /// Longitudinal acceleration command, g.
+    pub a_long: Ease,
+    /// Lateral (centripetal, right positive) acceleration command, g.
+    pub a_lat: Ease,
+    /// Initial speed, m/s.
+    pub v0: f64,
+    /// Initial heading, deg.
+    pub yaw0: f64,
+    /// Static roll/pitch offsets (mounting, parking slope), deg.
+    pub roll0: f64,
+    pub pitch0: f64,
+    /// Road/suspension roll and pitch, deg.
+    pub roll_sines: Vec<Sine>,
+    pub pitch_sines: Vec<Sine>,
+    /// Body roll per g of lateral acceleration, deg/g (negative: leans out of the turn).
+    pub roll_per_lat: f64,
+    /// Body pitch per g of longitudinal acceleration, deg/g (positive: squats nose-up).
+    pub pitch_per_long: f64,
+    pub bumps: Vec<Bump>,
+    pub thermal: Thermal,
+    /// Start of the manoeuvres, s (scored window for the oracle floor).
+    pub manoeuvre_start: f64,
+}
+
+/// The truth at one sample.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Truth {
+    pub t: f64,
+    /// deg, yaw wrapped to (-180, 180].
+    pub roll: f64,
+    pub pitch: f64,
+    pub yaw: f64,
+    /// Body rates `[p, q, r]`, deg/s.
+    pub rate: [f64; 3],
+    /// Specific force, body FRD, g (without vibration).
+    pub f: [f64; 3],
+    /// deg C and deg C/s.
+    pub temp: f64,
+    pub temp_rate: f64,
+    /// Velocity and acceleration in NED, m/s and m/s^2.
+    pub vel: [f64; 3],
+    pub acc: [f64; 3],
+    /// Speed along the track, m/s.
+    pub speed: f64,
+}
+
+/// Body-to-NED rotation matrix `C_nb` of Z-Y-X Euler angles (rad).
+pub fn c_nb(roll: f64, pitch: f64, yaw: f64) -> [[f64; 3]; 3] {
+    let (sf, cf) = roll.sin_cos();
+    let (st, ct) = pitch.sin_cos();
+    let (sp, cp) = yaw.sin_cos();
+    [
+        [ct * cp, sf * st * cp - cf * sp, cf * st * cp + sf * sp],
+        [ct * sp, sf * st * sp + cf * cp, cf * st * sp - sf * cp],
+        [-st, sf * ct, cf * ct],
+    ]
+}
+
+/// `C^T v` (NED to body with `C = C_nb`).
+pub fn to_body(c: &[[f64; 3]; 3], v: &[f64; 3]) -> [f64; 3] {
+    [
+        c[0][0] * v[0] + c[1][0] * v[1] + c[2][0] * v[2],
+        c[0][1] * v[0] + c[1][1] * v[1] + c[2][1] * v[2],
+        c[0][2] * v[0] + c[1][2] * v[1] + c[2][2] * v[2],
+    ]
+}
+
+/// `C v` (body to NED).
+pub fn to_ned(c: &[[f64; 3]; 3], v: &[f64; 3]) -> [f64; 3] {
+    [
+        c[0][0] * v[0] + c[0][1] * v[1] + c[0][2] * v[2],
+        c[1][0] * v[0] + c[1][1] * v[1] + c[1][2] * v[2],
+        c[2][0] * v[0] + c[2][1] * v[1] + c[2][2] * v[2],
+    ]
+}
+
+/// Wrap degrees to (-180, 180].
+pub fn wrap180(a: f64) -> f64 {
+    let r = (a + 180.0).rem_euclid(360.0) - 180.0;
+    if r == -180.0 {
+        180.0
+    } else {
+        r
+    }
+}
+
+/// Streams the truth at a fixed sample rate.
+pub struct TruthGen<'a> {
+    spec: &'a MotionSpec,
+    dt: f64,
+    k: u64,
+    /// Integrated speed (m/s) and heading (rad) at the current sample time.
+    v: f64,
+    psi: f64,
+    substeps: u32,
+}
+
+impl<'a> TruthGen<'a> {
+    pub fn new(spec: &'a MotionSpec, rate_hz: f64) -> TruthGen<'a> {
+        TruthGen { spec, dt: 1.0 / rate_hz, k: 0, v: spec.v0, psi: spec.yaw0 * D2R, substeps: 4 }
+    }
+
+    /// Number of samples in the run.
+    pub fn len(&self) -> u64 {
+        (self.spec.duration / self.dt).floor() as u64 + 1
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    fn psi_dot(&self, t: f64, v: f64) -> f64 {
+        if v > 0.5 {
+            G * self.spec.a_lat.eval(t).0 / v
+        } else {
+            0.0
+        }
+    }
+
+    fn vdot(&self, t: f64) -> f64 {
+        G * self.spec.a_long.eval(t).0
+    }
+
+    /// Roll and pitch (rad) and their derivatives (rad/s) at `t`.
+    fn tilt(&self, t: f64) -> (f64, f64, f64, f64) {
+        let s = self.spec;
+        let (rs, drs) = sum_sines(&s.roll_sines, t);
+        let (ps, dps) = sum_sines(&s.pitch_sines, t);
+        let (al, dal) = s.a_lat.eval(t);
+        let (ag, dag) = s.a_long.eval(t);
+        let (mut bp, mut dbp) = (0.0, 0.0);
+        for b in &s.bumps {
+            if t > b.t0 && t < b.t0 + b.dur {
+                let x = 2.0 * PI * (t - b.t0) / b.dur;
+                bp += b.pitch * 0.5 * (1.0 - x.cos());
+                dbp += b.pitch * 0.5 * x.sin() * 2.0 * PI / b.dur;
+            }
+        }
+        let roll = s.roll0 + rs + s.roll_per_lat * al;
+        let droll = drs + s.roll_per_lat * dal;
+        let pitch = s.pitch0 + ps + s.pitch_per_long * ag + bp;
+        let dpitch = dps + s.pitch_per_long * dag + dbp;
+        (roll * D2R, pitch * D2R, droll * D2R, dpitch * D2R)
+    }
+
+    /// Vertical (down) acceleration m/s^2 and velocity m/s from the bumps.
+    fn vertical(&self, t: f64) -> (f64, f64) {
+        let (mut a, mut v) = (0.0, 0.0);
+        for b in &self.spec.bumps {
+            if t > b.t0 && t < b.t0 + b.dur {
+                let w = 2.0 * PI / b.dur;
+                let x = w * (t - b.t0);
+                a += b.accel * G * x.sin();
+                v += b.accel * G * (1.0 - x.cos()) / w;
+            }
+        }
+        (a, v)
+    }
+
+    fn truth_now(&self) -> Truth {
+        let t = self.k as f64 * self.dt;
+        let (roll, pitch, droll, dpitch) = self.tilt(t);
+        let v = self.v;
+        let psi = self.psi;
+        let dpsi = self.psi_dot(t, v);
+        // body rates = E^-1 [roll', pitch', yaw']
+        let (sf, cf) = roll.sin_cos();
+        let (st, ct) = pitch.sin_cos();
+        let p = droll - st * dpsi;
+        let q = cf * dpitch + sf * ct * dpsi;
+        let r = -sf * dpitch + cf * ct * dpsi;
+        let (sp, cp) = psi.sin_cos();
+        let vdot = if v > 0.0 || self.vdot(t) > 0.0 { self.vdot(t) } else { 0.0 };
+        let (az, vz) = self.vertical(t);
+        let acc = [vdot * cp - v * dpsi * sp, vdot * sp + v * dpsi * cp, az];
+        let vel = [v * cp, v * sp, vz];
+        let c = c_nb(roll, pitch, psi);
+        let f = to_body(&c, &[acc[0] / G, acc[1] / G, acc[2] / G - 1.0]);
+        let (temp, temp_rate) = self.spec.thermal.eval(t);
+        Truth {
+            t,
+            roll: roll * R2D,
+            pitch: pitch * R2D,
+            yaw: wrap180(psi * R2D),
+            rate: [p * R2D, q * R2D, r * R2D],
+            f,
+            temp,
+            temp_rate,
+            vel,
+            acc,
+            speed: v,
+        }
+    }
+
+    /// Advance speed and heading by one sample period (RK4 sub-steps).
+    fn advance(&mut self) {
+        let h = self.dt / self.substeps as f64;
+        let mut t = self.k as f64 * self.dt;
+        for _ in 0..self.substeps {
+            let (v, psi) = (self.v, self.psi);
+            let f = |tt: f64, vv: f64| -> (f64, f64) {
+                let a = if vv > 0.0 || self.vdot(tt) > 0.0 { self.vdot(tt) } else { 0.0 };
+                (a, self.psi_dot(tt, vv))
+            };
+            let k1 = f(t, v);
+            let k2 = f(t + h / 2.0, v + h / 2.0 * k1.0);
+            let k3 = f(t + h / 2.0, v + h / 2.0 * k2.0);
+            let k4 = f(t + h, v + h * k3.0);
+            self.v = (v + h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0)).max(0.0);
+            self.psi = psi + h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1);
+            t += h;
+        }
+        self.k += 1;
+    }
+}
+
+impl Iterator for TruthGen<'_> {
+    type Item = Truth;
+    fn next(&mut self) -> Option<Truth> {
+        if self.k >= self.len() {
+            return None;
+        }
+        let tr = self.truth_now();
+        self.advance();
+        Some(tr)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ease_derivative_matches_finite_difference() {
+        let e = Ease { knots: vec![(0.0, 0.0), (2.0, 1.0), (5.0, 1.0), (6.0, -0.5)] };
+        for i in 0..700 {
+            let t = -0.5 + i as f64 * 0.01;
+            let h = 1e-6;
+            let fd = (e.eval(t + h).0 - e.eval(t - h).0) / (2.0 * h);
+            assert!((fd - e.eval(t).1).abs() < 1e-5, "t {t}: {fd} vs {}", e.eval(t).1);
+        }
+        assert_eq!(e.eval(3.0).0, 1.0);
+        assert_eq!(e.eval(10.0).0, -0.5);
+    }
+
+    #[test]
+    fn rotation_is_orthonormal_and_zyx() {
+        let c = c_nb(0.3, -0.2, 1.1);
+        for i in 0..3 {
+            for j in 0..3 {
+                let d: f64 = (0..3).map(|k| c[k][i] * c[k][j]).sum();
+                assert!((d - if i == j { 1.0 } else { 0.0 }).abs() < 1e-12);
+            }
+        }
+        // level, gravity (0,0,-1) specific force reads (0,0,-1) in the body
+        let f = to_body(&c_nb(0.0, 0.0, 0.7), &[0.0, 0.0, -1.0]);
+        assert!((f[2] + 1.0).abs() < 1e-12);
+        // nose up: body x points up, specific force has +x component sin(theta)
+        let th = 0.2;
+        let f = to_body(&c_nb(0.0, th, 0.0), &[0.0, 0.0, -1.0]);
+        assert!((f[0] - th.sin()).abs() < 1e-12);
+    }
+}

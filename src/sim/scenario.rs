@@ -1,0 +1,405 @@
+//! Scenarios: the motion, the temperature and the ranges the sensor errors
+//! are drawn from.
+//!
+//! - `static`: bench, unit at rest (slightly tilted), self-heating.
+//! - `chamber`: thermal-chamber run as in the paper: power-on at the chamber
+//!   ambient, self-heating to the working temperature, 30 min at rest.
+//! - `paper`: 800 s road-like run: gentle driving (a few degrees of roll and
+//!   pitch, slow turns, speed changes), then sustained acceleration from
+//!   about 350 s (a winding road with no straight, constant-speed stretch).
+//! - `vehicle`: gentle driving, then from 350 s long 0.3 g accelerations and
+//!   brakings, constant-radius 0.4 g turns of 20-30 s, short cruises between
+//!   them, vertical bumps, engine vibration, temperature rising 10-20 deg C,
+//!   turn-on bias up to +-0.5 deg/s; `hard` adds short manoeuvres above 0.6 g.
+
+use super::model::{Effect, NoiseModel};
+use super::motion::{Bump, Ease, MotionSpec, Sine, Thermal, G};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+pub const SCENARIOS: [&str; 4] = ["static", "chamber", "paper", "vehicle"];
+
+/// Ranges the sensor parameters and environment are drawn from. Every field
+/// can be overridden by `gyrocomp simulate --ranges FILE` (a TOML file with
+/// any subset of these keys); an effect is switched off by leaving it out of
+/// `effects`, a noise term by setting it to 0.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ranges {
+    /// Gyro effects that act (names of the model file's vocabulary).
+    pub effects: Vec<Effect>,
+    /// Turn-on bias: uniform in +-this per axis, deg/s.
+    pub turn_on_bias: f64,
+    /// Linear thermal slope: the paper's Table 1 p1 per axis
+    /// (0.0020, 0.0044, 0.0192 deg/s/C) times a factor uniform in this
+    /// range, with a random sign.
+    pub thermal_linear_factor: [f64; 2],
+    /// Reference temperature of the thermal terms, deg C.
+    pub thermal_t0: f64,
+    /// Quadratic thermal coefficient: uniform in +-this, deg/s/C^2.
+    pub thermal_quadratic: f64,
+    /// Thermal-rate coefficient: uniform in +-this, deg/s per (C/s).
+    pub thermal_rate: f64,
+    /// Warm-up transient amplitude: uniform in +-this per axis, deg/s.
+    pub warmup_amplitude: f64,
+    /// Warm-up time constant, s: uniform in this range.
+    pub warmup_tau_s: [f64; 2],
+    /// g-sensitivity: each matrix element uniform in +-this, deg/s/g.
+    pub g_sensitivity: f64,
+    /// Scale-factor error: uniform in +-this per axis (dimensionless).
+    pub scale_factor: f64,
+    /// Misalignment: each off-diagonal element uniform in +-this, rad.
+    pub misalignment: f64,
+    /// Time delay, s: uniform in this range.
+    pub time_delay_s: [f64; 2],
+    /// Accelerometer bias: uniform in +-this per axis, g.
+    pub accel_bias: f64,
+    /// Magnetometer hard-iron bias: uniform in +-this per axis, gauss.
+    pub magn_bias: f64,
+    /// Stochastic terms, used as given.
+    pub noise: NoiseModel,
+    /// Engine/road vibration amplitude per tone on the z axis, g, uniform in
+    /// this range (x and y get half); [0, 0] switches vibration off.
+    pub vibration_g: [f64; 2],
+    /// Temperature at power-on, deg C: uniform in this range.
+    pub ambient: [f64; 2],
+    /// Self-heating rise, deg C: uniform in this range.
+    pub self_heating: [f64; 2],
+    /// Self-heating time constant, s: uniform in this range.
+    pub heating_tau_s: [f64; 2],
+}
+
+/// The paper's Table 1 slopes p1, deg/s per deg C.
+pub const TABLE1_P1: [f64; 3] = [0.0020, 0.0044, 0.0192];
+
+impl Ranges {
+    fn base() -> Ranges {
+        Ranges {
+            effects: vec![Effect::TurnOnBias, Effect::ThermalLinear, Effect::WarmupTransient],
+            turn_on_bias: 0.5,
+            thermal_linear_factor: [0.5, 1.5],
+            thermal_t0: 25.0,
+            thermal_quadratic: 5e-5,
+            thermal_rate: 0.5,
+            warmup_amplitude: 0.05,
+            warmup_tau_s: [20.0, 60.0],
+            g_sensitivity: 0.009,
+            scale_factor: 0.002,
+            misalignment: 0.0009,
+            time_delay_s: [0.0005, 0.003],
+            accel_bias: 0.005,
+            magn_bias: 0.005,
+            noise: NoiseModel::default(),
+            vibration_g: [0.0, 0.0],
+            ambient: [20.0, 30.0],
+            self_heating: [8.0, 12.0],
+            heating_tau_s: [150.0, 300.0],
+        }
+    }
+
+    /// The default ranges of a scenario.
+    pub fn for_scenario(name: &str) -> Ranges {
+        let mut r = Ranges::base();
+        match name {
+            "chamber" => {
+                r.ambient = [-10.0, 50.0];
+                r.self_heating = [12.0, 20.0];
+                r.heating_tau_s = [300.0, 600.0];
+            }
+            "paper" => {
+                r.vibration_g = [0.005, 0.015];
+                r.self_heating = [10.0, 15.0];
+                r.heating_tau_s = [150.0, 300.0];
+            }
+            "vehicle" => {
+                r.effects = vec![
+                    Effect::TurnOnBias,
+                    Effect::ThermalLinear,
+                    Effect::WarmupTransient,
+                    Effect::GSensitivity,
+                    Effect::ScaleFactor,
+                    Effect::Misalignment,
+                ];
+                r.vibration_g = [0.02, 0.04];
+                r.self_heating = [10.0, 20.0];
+                r.heating_tau_s = [150.0, 300.0];
+            }
+            _ => {}
+        }
+        r
+    }
+
+    /// The scenario's ranges with the keys of `text` (TOML) laid over them.
+    pub fn with_overrides(name: &str, text: &str) -> Result<Ranges, String> {
+        let base = toml::Value::try_from(Ranges::for_scenario(name)).map_err(|e| e.to_string())?;
+        let over: toml::Value = toml::from_str(text).map_err(|e| e.to_string())?;
+        let (mut base, over) = match (base, over) {
+            (toml::Value::Table(b), toml::Value::Table(o)) => (b, o),
+            _ => return Err("ranges must be a TOML table".into()),
+        };
+        for (k, v) in over {
+            if !base.contains_key(&k) {
+                return Err(format!("unknown key {k:?} in ranges"));
+            }
+            if k == "noise" {
+                if let (Some(toml::Value::Table(bn)), toml::Value::Table(on)) = (base.get_mut("noise"), &v) {
+                    for (nk, nv) in on {
+                        bn.insert(nk.clone(), nv.clone());
+                    }
+                    continue;
+                }
+            }
+            base.insert(k, v);
+        }
+        toml::Value::Table(base).try_into().map_err(|e: toml::de::Error| e.to_string())
+    }
+}
+
+/// Uniform in `[lo, hi]` (lo when the range is empty).
+pub fn uni(rng: &mut ChaCha8Rng, r: [f64; 2]) -> f64 {
+    if r[1] > r[0] {
+        rng.gen_range(r[0]..=r[1])
+    } else {
+        r[0]
+    }
+}
+
+/// Uniform in `[-m, m]`.
+pub fn sym(rng: &mut ChaCha8Rng, m: f64) -> f64 {
+    if m > 0.0 {
+        rng.gen_range(-m..=m)
+    } else {
+        0.0
+    }
+}
+
+/// Builds the command profiles segment by segment, tracking the speed.
+struct Plan {
+    a_long: Ease,
+    a_lat: Ease,
+    t: f64,
+    /// Speed at `t` (exact for the eased profile: the mean of a cosine ease
+    /// between two levels is their average).
+    v: f64,
+    long: f64,
+    lat: f64,
+}
+
+impl Plan {
+    fn new(v0: f64) -> Plan {
+        let mut a_long = Ease::default();
+        let mut a_lat = Ease::default();
+        a_long.push(0.0, 0.0);
+        a_lat.push(0.0, 0.0);
+        Plan { a_long, a_lat, t: 0.0, v: v0, long: 0.0, lat: 0.0 }
+    }
+
+    /// Ease to the levels (g) over `ramp` s, then hold them for `hold` s.
+    fn seg(&mut self, long: f64, lat: f64, ramp: f64, hold: f64) {
+        let t1 = self.t + ramp;
+        self.v += G * 0.5 * (self.long + long) * ramp;
+        self.a_long.push(t1, long);
+        self.a_lat.push(t1, lat);
+        self.v += G * long * hold;
+        let t2 = t1 + hold;
+        self.a_long.push(t2, long);
+        self.a_lat.push(t2, lat);
+        self.t = t2;
+        self.long = long;
+        self.lat = lat;
+    }
+
+    /// Longest hold at `long` g (after a ramp) keeping the speed within [lo, hi].
+    fn max_hold(&self, long: f64, ramp: f64, lo: f64, hi: f64) -> f64 {
+        let v1 = self.v + G * 0.5 * (self.long + long) * ramp;
+        if long > 0.0 {
+            ((hi - v1) / (G * long)).max(0.0)
+        } else if long < 0.0 {
+            ((v1 - lo) / (G * -long)).max(0.0)
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
+fn sines(rng: &mut ChaCha8Rng, amps: [f64; 2], periods: [f64; 2], n: usize) -> Vec<Sine> {
+    (0..n)
+        .map(|_| Sine {
+            amp: uni(rng, amps),
+            freq: 1.0 / uni(rng, periods),
+            phase: rng.gen_range(0.0..2.0 * std::f64::consts::PI),
+        })
+        .collect()
+}
+
+fn thermal(rng: &mut ChaCha8Rng, r: &Ranges) -> Thermal {
+    Thermal { ambient: uni(rng, r.ambient), rise: uni(rng, r.self_heating), tau: uni(rng, r.heating_tau_s), drift: 0.0 }
+}
+
+fn at_rest(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64) -> MotionSpec {
+    MotionSpec {
+        duration,
+        a_long: Ease::constant(0.0),
+        a_lat: Ease::constant(0.0),
+        v0: 0.0,
+        yaw0: rng.gen_range(-180.0..180.0),
+        roll0: sym(rng, 2.0),
+        pitch0: sym(rng, 2.0),
+        roll_sines: vec![],
+        pitch_sines: vec![],
+        roll_per_lat: 0.0,
+        pitch_per_long: 0.0,
+        bumps: vec![],
+        thermal: thermal(rng, r),
+        manoeuvre_start: 0.0,
+    }
+}
+
+/// Gentle driving from `p.t` to `until`: speed changes of 0.03-0.08 g, slow
+/// turns of 0.03-0.08 g, cruises. Speeds kept in 8..22 m/s.
+fn gentle(rng: &mut ChaCha8Rng, p: &mut Plan, until: f64) {
+    while p.t < until - 20.0 {
+        let ramp = uni(rng, [1.5, 3.0]);
+        match rng.gen_range(0..3) {
+            0 => {
+                let a = uni(rng, [0.03, 0.08]) * if p.v > 15.0 { -1.0 } else { 1.0 };
+                let hold = uni(rng, [4.0, 12.0]).min(p.max_hold(a, ramp, 8.0, 22.0));
+                p.seg(a, 0.0, ramp, hold);
+            }
+            1 => {
+                let lat = uni(rng, [0.03, 0.08]) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+                p.seg(0.0, lat, ramp, uni(rng, [6.0, 18.0]));
+            }
+            _ => p.seg(0.0, 0.0, ramp, uni(rng, [3.0, 10.0])),
+        }
+    }
+    let left = (until - p.t - 2.0).max(0.0);
+    p.seg(0.0, 0.0, 2.0, left);
+}
+
+fn road(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64) -> (MotionSpec, Plan) {
+    let mut p = Plan::new(0.0);
+    // Engine on, parked for 3 s, then pull away gently (0.08 g to ~12 m/s).
+    p.seg(0.0, 0.0, 0.5, 2.5);
+    p.seg(0.08, 0.0, 2.0, 13.0);
+    p.seg(0.0, 0.0, 2.0, 0.0);
+    let spec = MotionSpec {
+        duration,
+        a_long: Ease::default(),
+        a_lat: Ease::default(),
+        v0: 0.0,
+        yaw0: rng.gen_range(-180.0..180.0),
+        roll0: sym(rng, 1.0),
+        pitch0: sym(rng, 1.0),
+        // Road camber and suspension: a few degrees, slow; plus a small fast sway.
+        roll_sines: [sines(rng, [1.0, 2.5], [15.0, 60.0], 2), sines(rng, [0.1, 0.3], [0.7, 2.0], 1)].concat(),
+        // Grades: a few degrees over a minute or two; pitch sway.
+        pitch_sines: [sines(rng, [1.0, 2.5], [40.0, 120.0], 2), sines(rng, [0.1, 0.3], [0.8, 2.5], 1)].concat(),
+        roll_per_lat: -uni(rng, [3.0, 5.0]),
+        pitch_per_long: uni(rng, [2.0, 4.0]),
+        bumps: vec![],
+        thermal: thermal(rng, r),
+        manoeuvre_start: 350.0_f64.min(duration),
+    };
+    (spec, p)
+}
+
+fn bumps(rng: &mut ChaCha8Rng, from: f64, to: f64, every: [f64; 2], accel: [f64; 2]) -> Vec<Bump> {
+    let mut v = Vec::new();
+    let mut t = from + uni(rng, every);
+    while t < to - 1.0 {
+        v.push(Bump { t0: t, dur: uni(rng, [0.2, 0.5]), accel: uni(rng, accel), pitch: sym(rng, 0.5) });
+        t += uni(rng, every);
+    }
+    v
+}
+
+/// Build the motion of a scenario.
+pub fn motion(name: &str, hard: bool, duration: f64, rng: &mut ChaCha8Rng, r: &Ranges) -> Result<MotionSpec, String> {
+    match name {
+        "static" | "chamber" => Ok(at_rest(rng, r, duration)),
+        "paper" => {
+            let (mut spec, mut p) = road(rng, r, duration);
+            gentle(rng, &mut p, spec.manoeuvre_start);
+            // Sustained acceleration: a winding road, one curve into the next,
+            // speed changing all the time; never a straight constant-speed stretch.
+            while p.t < duration {
+                let lat = uni(rng, [0.15, 0.3]) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+                let a = uni(rng, [0.1, 0.2]) * if p.v > 18.0 { -1.0 } else { 1.0 };
+                let ramp = uni(rng, [1.0, 2.0]);
+                let hold = uni(rng, [6.0, 15.0]).min(p.max_hold(a, ramp, 8.0, 28.0)).max(2.0);
+                p.seg(a, lat, ramp, hold);
+            }
+            spec.bumps = bumps(rng, 5.0, duration, [8.0, 25.0], [0.05, 0.15]);
+            spec.a_long = p.a_long;
+            spec.a_lat = p.a_lat;
+            Ok(spec)
+        }
+        "vehicle" => {
+            let (mut spec, mut p) = road(rng, r, duration);
+            gentle(rng, &mut p, spec.manoeuvre_start);
+            let (lo, hi) = (8.0, 33.0);
+            while p.t < duration {
+                let ramp = uni(rng, [0.8, 1.5]);
+                let pick = rng.gen_range(0..if hard { 7 } else { 6 });
+                match pick {
+                    // long acceleration / braking, 0.3 g, as long as the speed range allows
+                    0 | 1 => {
+                        let a = if p.v < 0.5 * (lo + hi) { 0.3 } else { -0.3 };
+                        let hold = p.max_hold(a, ramp, lo, hi).min(uni(rng, [5.0, 10.0]));
+                        p.seg(a, 0.0, ramp, hold);
+                    }
+                    // constant-radius turn, 0.4 g, 20-30 s
+                    2 | 3 => {
+                        let lat = 0.4 * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+                        p.seg(0.0, lat, ramp, uni(rng, [20.0, 30.0]));
+                    }
+                    // braking into a turn, then accelerating out of it
+                    4 => {
+                        let lat = uni(rng, [0.3, 0.4]) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+                        let hold = p.max_hold(-0.2, ramp, lo, hi).min(3.0);
+                        p.seg(-0.2, 0.0, ramp, hold);
+                        p.seg(0.0, lat, ramp, uni(rng, [10.0, 20.0]));
+                        let hold = p.max_hold(0.2, ramp, lo, hi).min(4.0);
+                        p.seg(0.2, 0.0, ramp, hold);
+                    }
+                    // a short cruise
+                    5 => p.seg(0.0, 0.0, ramp, uni(rng, [2.0, 8.0])),
+                    // hard: a short manoeuvre above 0.6 g (emergency brake or swerve)
+                    _ => {
+                        let g = uni(rng, [0.65, 0.8]);
+                        let ramp = uni(rng, [0.3, 0.6]);
+                        if p.v > 16.0 && rng.gen_bool(0.5) {
+                            let hold = p.max_hold(-g, ramp, lo, hi).min(uni(rng, [1.0, 2.5]));
+                            p.seg(-g, 0.0, ramp, hold);
+                        } else {
+                            let s = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+                            p.seg(0.0, s * g, ramp, uni(rng, [1.0, 2.0]));
+                            p.seg(0.0, -s * g, ramp, uni(rng, [1.0, 2.0]));
+                        }
+                    }
+                }
+            }
+            p.seg(0.0, 0.0, 1.0, 0.0);
+            spec.bumps = [
+                bumps(rng, 5.0, spec.manoeuvre_start, [10.0, 30.0], [0.05, 0.15]),
+                bumps(rng, spec.manoeuvre_start, duration, [4.0, 12.0], if hard { [0.2, 0.5] } else { [0.1, 0.3] }),
+            ]
+            .concat();
+            spec.a_long = p.a_long;
+            spec.a_lat = p.a_lat;
+            Ok(spec)
+        }
+        _ => Err(format!("unknown scenario {name:?} (known: {})", SCENARIOS.join(", "))),
+    }
+}
+
+/// Default duration of a scenario, s.
+pub fn default_duration(name: &str) -> f64 {
+    match name {
+        "static" => 300.0,
+        "chamber" => 1800.0,
+        _ => 800.0,
+    }
+}
