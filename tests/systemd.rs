@@ -55,6 +55,11 @@ echo "CHECK: watchdog timeout logged"
 sleep 1
 journalctl -u gyrocomp.service --no-pager -o cat _PID="$P2" | grep -q "loaded learned bias" || fail "restarted instance did not load the state"
 echo "CHECK: state loaded after restart"
+systemctl reload gyrocomp.service || fail "reload"
+sleep 1
+journalctl -u gyrocomp.service --no-pager -o cat _PID="$P2" | grep -q "config reloaded" || fail "SIGHUP did not reload"
+[ "$(systemctl is-active gyrocomp.service)" = active ] || fail "not active after reload"
+echo "CHECK: reloaded"
 T0=$(date +%s%N)
 systemctl stop gyrocomp.service
 T1=$(date +%s%N)
@@ -80,7 +85,7 @@ echo "CHECK: all ok"
         .expect("bash tests/vm/systemd.sh");
     let text = format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
     assert!(o.status.success(), "systemd VM run failed:\n{text}");
-    for want in ["CHECK: active via READY=1", "CHECK: state saved", "CHECK: watchdog timeout logged", "CHECK: state loaded after restart", "CHECK: all ok"] {
+    for want in ["CHECK: active via READY=1", "CHECK: state saved", "CHECK: watchdog timeout logged", "CHECK: state loaded after restart", "CHECK: reloaded", "CHECK: all ok"] {
         assert!(text.contains(want), "missing {want:?}:\n{text}");
     }
 }

@@ -30,7 +30,11 @@ use tokio::sync::{mpsc, watch};
 use tracing::{error, info, warn};
 
 /// Depth of the output queue between the loop and the writer task (frames).
-pub const TX_QUEUE: usize = 1024;
+pub const TX_QUEUE: usize = 4096;
+/// Frames read per wake-up at most before the loop looks at signals and timers again.
+pub const RX_BATCH: usize = 256;
+/// Receive buffer asked of the kernel (it caps it at net.core.rmem_max).
+pub const RX_BUFFER: libc::c_int = 4 << 20;
 const EFF_RTR_MASK: u32 = 0x7FF | 0x8000_0000 | 0x4000_0000;
 
 /// Counters of the daemon shell (the input path's are in the pipeline).
@@ -117,12 +121,30 @@ pub fn open_bus(cfg: &Config) -> std::io::Result<CanSocket> {
     let s = CanSocket::open(&cfg.can.interface)?;
     let filters: Vec<CanFilter> = cfg.input.ids.all().iter().map(|id| CanFilter::new(*id, EFF_RTR_MASK)).collect();
     s.set_filters(&filters)?;
+    set_rcvbuf(&s, RX_BUFFER);
     if cfg.daemon.error_frames {
         s.set_error_filter_accept_all()?;
     } else {
         s.set_error_filter_drop_all()?;
     }
     Ok(s)
+}
+
+/// Ask for a larger receive buffer so bursts wait in the kernel, not get lost.
+/// SO_RCVBUFFORCE works with CAP_NET_ADMIN; otherwise SO_RCVBUF, capped by the
+/// kernel at net.core.rmem_max. Failure is harmless and logged.
+fn set_rcvbuf(s: &CanSocket, bytes: libc::c_int) {
+    use std::os::fd::AsRawFd;
+    let fd = s.as_raw_fd();
+    let set = |opt| {
+        // SAFETY: setsockopt on our own socket with a c_int option value.
+        unsafe {
+            libc::setsockopt(fd, libc::SOL_SOCKET, opt, &bytes as *const libc::c_int as *const libc::c_void, std::mem::size_of::<libc::c_int>() as libc::socklen_t)
+        }
+    };
+    if set(libc::SO_RCVBUFFORCE) != 0 && set(libc::SO_RCVBUF) != 0 {
+        warn!(error = %std::io::Error::last_os_error(), "cannot enlarge the receive buffer");
+    }
 }
 
 /// The kernel's index of an interface, 0 when there is none.
@@ -284,18 +306,21 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
                         }
                     }
                 }
-                r = sock.read_frame() => match r {
-                    Ok(frame) => {
-                        let t = now_us();
-                        match &frame {
-                            CanFrame::Error(_) => {
+                r = sock.read_frame() => {
+                    // One wake-up, then drain what the kernel already holds (bounded),
+                    // so a burst costs one trip through select! rather than one per frame.
+                    let mut next = Some(r);
+                    let mut n = 0;
+                    while let Some(r) = next.take() {
+                        match r {
+                            Ok(CanFrame::Error(_)) => {
                                 shell.error_frames.fetch_add(1, Ordering::Relaxed);
                             }
-                            f => {
+                            Ok(f) => {
                                 let n0 = sink.samples;
                                 let td = shell.tx_dropped.load(Ordering::Relaxed);
                                 pipe.extra_flags = if td != tx_dropped_seen { flags::TX_DROP } else { 0 };
-                                pipe.push(t, RawFrame::from_frame(f), &mut sink);
+                                pipe.push(now_us(), RawFrame::from_frame(&f), &mut sink);
                                 if sink.samples != n0 {
                                     tx_dropped_seen = td;
                                     last_sample = Instant::now();
@@ -310,17 +335,22 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
                                     notifier.watchdog_if_due();
                                 }
                             }
+                            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break,
+                            Err(e) => {
+                                shell.reopens.fetch_add(1, Ordering::Relaxed);
+                                warn!(interface = %cfg.can.interface, error = %e, "bus read failed; reopening");
+                                let _ = sock_tx.send(None);
+                                tokio::time::sleep(backoff).await;
+                                backoff = (backoff * 2).min(Duration::from_secs(2));
+                                continue 'outer;
+                            }
+                        }
+                        n += 1;
+                        if n < RX_BATCH {
+                            next = Some(sock.try_read_frame());
                         }
                     }
-                    Err(e) => {
-                        shell.reopens.fetch_add(1, Ordering::Relaxed);
-                        warn!(interface = %cfg.can.interface, error = %e, "bus read failed; reopening");
-                        let _ = sock_tx.send(None);
-                        tokio::time::sleep(backoff).await;
-                        backoff = (backoff * 2).min(Duration::from_secs(2));
-                        continue 'outer;
-                    }
-                },
+                }
                 _ = ticker.tick() => {
                     let now = Instant::now();
                     if now.duration_since(last_sample).as_secs_f64() > cfg.daemon.silent_after_s {
