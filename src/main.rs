@@ -24,6 +24,23 @@ enum Cmd {
         #[arg(long)]
         csv: Option<PathBuf>,
     },
+    /// Fit the thermal bias curve from thermal-chamber runs (candump logs of a static sensor).
+    Calibrate {
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// One log per chamber run (one power cycle each).
+        #[arg(long, num_args = 1.., required = true)]
+        input: Vec<PathBuf>,
+        /// Polynomial order: 1 (linear, as in the paper), 2 or 3.
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=3))]
+        order: u8,
+        /// Write the fitted [thermal] section to this file.
+        #[arg(long)]
+        write: Option<PathBuf>,
+        /// Write SVG plots into this directory.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+    },
     /// Validate a config file and print the effective configuration.
     CheckConfig { file: PathBuf },
 }
@@ -39,6 +56,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.cmd {
         Cmd::Replay { config, input, output, csv } => cmd_replay(config, input, output, csv),
+        Cmd::Calibrate { config, input, order, write, plot } => cmd_calibrate(config, input, order, write, plot),
         Cmd::CheckConfig { file } => Config::load(&file).map(|c| print!("{}", c.to_toml())).map_err(|e| e.to_string()),
     };
     match r {
@@ -66,6 +84,28 @@ fn cmd_replay(config: Option<PathBuf>, input: PathBuf, output: Option<PathBuf>, 
             sum.bad_lines,
             sum.input.frames
         ));
+    }
+    Ok(())
+}
+
+fn cmd_calibrate(
+    config: Option<PathBuf>,
+    input: Vec<PathBuf>,
+    order: u8,
+    write: Option<PathBuf>,
+    plot: Option<PathBuf>,
+) -> Result<(), String> {
+    let cfg = load_config(&config)?;
+    let cal = gyrocomp::calibrate::calibrate_files(&cfg, &input, order).map_err(|e| e.to_string())?;
+    print!("{}", cal.render());
+    if let Some(p) = write {
+        cal.write_toml(&p).map_err(|e| e.to_string())?;
+        println!("wrote {}", p.display());
+    }
+    if let Some(d) = plot {
+        for p in cal.plot(&d).map_err(|e| e.to_string())? {
+            println!("wrote {}", p.display());
+        }
     }
     Ok(())
 }
