@@ -174,7 +174,7 @@ pub fn read_run_from<R: io::Read>(input: R, name: &str, cfg: &Config) -> Result<
             Err(e) => return Err(bad(format!("read error after line {}: {e}", rd.line_no))),
         };
         let parsed = match line {
-            Ok(l) if l.is_empty() => continue,
+            Ok([]) => continue,
             Ok(l) => parse_line(l),
             Err(e) => Err(e),
         };
@@ -444,7 +444,7 @@ impl Normal {
         }
         // scale to unit diagonal for conditioning
         let d: Vec<f64> = (0..p).map(|a| if m[(a, a)] > 0.0 { 1.0 / m[(a, a)].sqrt() } else { 0.0 }).collect();
-        if d.iter().any(|v| *v == 0.0) {
+        if d.contains(&0.0) {
             return None;
         }
         let ms = DMatrix::from_fn(p, p, |a, b| m[(a, b)] * d[a] * d[b]);
@@ -652,6 +652,15 @@ pub fn calibrate_runs(runs: &[Run], order: u8, t0: f64) -> Result<Calibration, C
             }
         }
         rep.cut_s = cuts[r];
+    }
+
+    for (r, pr) in prep.iter().enumerate() {
+        if !pr.bins.iter().zip(&pr.keep).any(|(b, k)| *k && b.t >= cuts[r]) {
+            return Err(CalError::Fit(format!(
+                "{}: nothing left after the warm-up cut of {:.0} s (run too short for its transient)",
+                reports[r].name, cuts[r]
+            )));
+        }
     }
 
     // The fit after the cuts.
@@ -950,11 +959,11 @@ impl Calibration {
             }
             series.push((used_pts, cut_pts));
         }
-        if !(xlo < xhi) {
-            xhi = xlo + 1.0;
+        if !(xlo.is_finite() && xhi.is_finite() && xlo < xhi) {
+            (xlo, xhi) = if xlo.is_finite() { (xlo, xlo + 1.0) } else { (0.0, 1.0) };
         }
-        if !(ylo < yhi) {
-            yhi = ylo + 0.01;
+        if !(ylo.is_finite() && yhi.is_finite() && ylo < yhi) {
+            (ylo, yhi) = if ylo.is_finite() { (ylo, ylo + 0.01) } else { (-0.01, 0.01) };
         }
         let pad = 0.05 * (yhi - ylo);
         let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
@@ -1020,8 +1029,8 @@ impl Calibration {
             series.push(pts);
         }
         let xhi = bins.last().map(|b| b.t).unwrap_or(1.0).max(1.0);
-        if !(ylo < yhi) {
-            (ylo, yhi) = (-0.01, 0.01);
+        if !(ylo.is_finite() && yhi.is_finite() && ylo < yhi) {
+            (ylo, yhi) = if ylo.is_finite() { (ylo, ylo + 0.01) } else { (-0.01, 0.01) };
         }
         let pad = 0.05 * (yhi - ylo);
         let root = SVGBackend::new(path, (900, 500)).into_drawing_area();

@@ -1,6 +1,9 @@
 //! `gyrocomp calibrate` on simulated thermal-chamber runs with known coefficients.
 
-use gyrocomp::calibrate::{calibrate_files, read_run, CalError, ChamberRun};
+use gyrocomp::adis::RawSample;
+use gyrocomp::calibrate::{calibrate_files, calibrate_runs, read_run, read_run_from, CalError, ChamberRun};
+use gyrocomp::candump::LogWriter;
+use rand::{Rng, SeedableRng};
 use gyrocomp::config::{Config, ThermalConfig};
 use gyrocomp::thermal::Thermal;
 use std::path::{Path, PathBuf};
@@ -291,4 +294,53 @@ fn command_line_writes_config_and_svg_plots() {
     // order out of range is refused by the parser
     let o = std::process::Command::new(exe).args(["calibrate", "--order", "4", "--input"]).arg(&files[0]).output().unwrap();
     assert!(!o.status.success());
+}
+
+#[test]
+fn bad_input_never_panics() {
+    let c = cfg();
+    let prof = c.profile();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(42);
+    let mut fitted = 0;
+    for round in 0..60 {
+        let log: Vec<u8> = match round % 3 {
+            // random bytes
+            0 => (0..rng.gen_range(0..20_000)).map(|_| rng.gen()).collect(),
+            // well-formed lines, random IDs, payloads and timestamps
+            1 => {
+                let mut w = LogWriter::new(Vec::new(), "can0");
+                for _ in 0..rng.gen_range(0..5000) {
+                    let d: [u8; 8] = rng.gen();
+                    w.frame(rng.gen_range(0..1u64 << 40), 0x100 + rng.gen_range(0..5), &d[..rng.gen_range(0..9)]).unwrap();
+                }
+                w.finish().unwrap()
+            }
+            // valid samples (checksums right) with wild values and jumping time
+            _ => {
+                let mut w = LogWriter::new(Vec::new(), "can0");
+                let mut t = 1_700_000_000_000_000u64;
+                for k in 0..rng.gen_range(1000..4000u32) {
+                    let g: [f64; 3] = [rng.gen_range(-900.0..900.0), rng.gen_range(-0.5..0.5), 0.0];
+                    let temp = if rng.gen_bool(0.5) { 25.0 } else { rng.gen_range(-40.0..85.0) };
+                    let mut raw = RawSample::quantise(&prof, g, [0.0, 0.0, -1.0], [0.2, 0.0, 0.4], temp);
+                    raw.cnt = k as u16;
+                    t += if rng.gen_bool(0.01) { rng.gen_range(0..100_000_000) } else { 100_000 };
+                    for (j, f) in raw.encode().iter().enumerate() {
+                        w.frame(t, 0x100 + j as u32, f).unwrap();
+                    }
+                }
+                w.finish().unwrap()
+            }
+        };
+        if let Ok(run) = read_run_from(&log[..], "fuzz.log", &c) {
+            for order in 1..=3 {
+                if let Ok(cal) = calibrate_runs(std::slice::from_ref(&run), order, 25.0) {
+                    fitted += 1;
+                    let _ = cal.render();
+                    let _ = cal.to_toml();
+                }
+            }
+        }
+    }
+    eprintln!("{fitted} fuzz fits");
 }

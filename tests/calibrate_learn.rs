@@ -4,7 +4,7 @@
 
 use gyrocomp::adis::Sample;
 use gyrocomp::config::Config;
-use gyrocomp::estimator::{flags, Estimate, Estimator};
+use gyrocomp::estimator::{flags, Estimator};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
@@ -39,7 +39,6 @@ fn run(cfg_text: &str, t_static: f64, seed: u64) -> (Outcome, Estimator) {
     let sig = 0.0135 * RATE.sqrt();
     let n = ((t_static + 600.0) * RATE) as u64;
     let mut out = Outcome { slope: [0.0; 3], max_err: [0.0; 3], clamp_seen: false };
-    let mut est = Estimate::default();
     for k in 0..n {
         let t = k as f64 / RATE;
         let tc = temp(t, t_static);
@@ -56,7 +55,7 @@ fn run(cfg_text: &str, t_static: f64, seed: u64) -> (Outcome, Estimator) {
         if t >= t_static {
             s.accel = s.accel.map(|v| 1.5 * v);
         }
-        est = e.step(&s);
+        let est = e.step(&s);
         if t >= t_static {
             assert_eq!(est.mode, 2);
             let err = [est.roll.abs(), est.pitch.abs(), est.yaw.abs()];
