@@ -18,8 +18,9 @@
 //!    departs from the median of the 31 bins around it by more than
 //!    `max(0.05 deg/s, 8 sigma)` (sigma: the run's robust scatter of that
 //!    difference), or its within-bin gyro standard deviation exceeds 3 times
-//!    the run's median, or its specific-force direction is more than 1 deg from
-//!    the run's median direction. Moving bins, widened by 5 s on each side, are
+//!    the run's median, or its mean gyro is more than 5 deg/s from the run's
+//!    median (no thermal drift is that large), or its specific-force direction
+//!    is more than 1 deg from the run's median direction. Moving bins, widened by 5 s on each side, are
 //!    left out of the fit and the run is reported as **not static**.
 //! 3. **Warm-up cut.** All runs are fitted jointly with the model
 //!    `bias = c_run + curve(T) + A_run exp(-t / tau_run)` (curve: the polynomial
@@ -74,6 +75,7 @@ pub const MIN_RANGE_C: f64 = 10.0;
 pub const ROT_MIN_DPS: f64 = 0.05;
 pub const ROT_SIGMAS: f64 = 8.0;
 pub const ROT_SD_RATIO: f64 = 3.0;
+pub const ROT_ABS_DPS: f64 = 5.0;
 pub const TILT_LIMIT_DEG: f64 = 1.0;
 pub const MEDIAN_HALF: usize = 15;
 pub const MOVING_MARGIN: usize = 5;
@@ -353,9 +355,12 @@ fn static_check(bins: &[Bin], rep: &mut RunReport) -> Vec<bool> {
         let thr = (ROT_SIGMAS * sigma).max(ROT_MIN_DPS);
         let mut sds: Vec<f64> = bins.iter().map(|b| b.gyro_sd[i]).collect();
         let sd_med = median(&mut sds);
+        let mut all: Vec<f64> = bins.iter().map(|b| b.gyro[i]).collect();
+        let run_med = median(&mut all);
         for j in 0..n {
             let d = dev[j].abs();
-            let sd_bad = sd_med > 0.0 && bins[j].gyro_sd[i] > ROT_SD_RATIO * sd_med;
+            let sd_bad = (sd_med > 0.0 && bins[j].gyro_sd[i] > ROT_SD_RATIO * sd_med)
+                || (bins[j].gyro[i] - run_med).abs() > ROT_ABS_DPS;
             if d > thr || sd_bad {
                 moving[j] = true;
             }

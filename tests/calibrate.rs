@@ -320,7 +320,8 @@ fn bad_input_never_panics() {
                 let mut w = LogWriter::new(Vec::new(), "can0");
                 let mut t = 1_700_000_000_000_000u64;
                 for k in 0..rng.gen_range(1000..4000u32) {
-                    let g: [f64; 3] = [rng.gen_range(-900.0..900.0), rng.gen_range(-0.5..0.5), 0.0];
+                    let spike = if rng.gen_bool(0.01) { rng.gen_range(-900.0..900.0) } else { 0.0 };
+                    let g: [f64; 3] = [rng.gen_range(-2.0..2.0) + spike, rng.gen_range(-0.5..0.5), 0.0];
                     let temp = if rng.gen_bool(0.5) { 25.0 } else { rng.gen_range(-40.0..85.0) };
                     let mut raw = RawSample::quantise(&prof, g, [0.0, 0.0, -1.0], [0.2, 0.0, 0.4], temp);
                     raw.cnt = k as u16;
@@ -343,4 +344,18 @@ fn bad_input_never_panics() {
         }
     }
     eprintln!("{fitted} fuzz fits");
+    assert!(fitted > 0, "the fit path was exercised");
+}
+
+/// Not a check: writes the four simulated chamber runs of the tests (paper's
+/// coefficients, 10 Hz) into $GYROCOMP_DEMO_DIR for trying the command:
+/// `GYROCOMP_DEMO_DIR=/tmp/chamber cargo test --release --test calibrate -- --ignored write_demo_logs`
+#[test]
+#[ignore]
+fn write_demo_logs() {
+    let dir = PathBuf::from(std::env::var("GYROCOMP_DEMO_DIR").expect("set GYROCOMP_DEMO_DIR"));
+    std::fs::create_dir_all(&dir).unwrap();
+    for p in chamber(&dir, &paper(), |_, _| {}) {
+        eprintln!("wrote {}", p.display());
+    }
 }
