@@ -880,7 +880,11 @@ impl Calibration {
             for k in 0..a.coeffs.len() {
                 line += &format!(" {} = {:.6e} +- {:.1e} {},", names[k], a.coeffs[k], a.ci[k], units[k]);
             }
-            line += &format!(" p2 = {:.4} +- {:.4} deg/s,", a.p2, a.p2_ci);
+            if a.p2_ci.is_finite() {
+                line += &format!(" p2 = {:.4} +- {:.4} deg/s,", a.p2, a.p2_ci);
+            } else {
+                line += &format!(" p2 = {:.4} deg/s (one run: no interval),", a.p2);
+            }
             line += &format!(
                 " residual RMS {:.4} deg/s, range {:.1}..{:.1} deg C ({:.1} deg C)",
                 a.rms,

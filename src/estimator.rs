@@ -9,6 +9,14 @@
 //! - `startup_thermal`, `startup_average`: the paper's comparison cases 2 and
 //!   1: the gyro integrated with the bias averaged over the learning window,
 //!   with / without the thermal curve; no fusion at all.
+//!
+//! Thermal curve (`[thermal]`, see `thermal`): polynomial up to third order,
+//! evaluated at the nearest edge outside `[t_min, t_max]`, with
+//! `flags::THERMAL_CLAMP` on every sample where that happens (modes that use
+//! the curve). With `[thermal] learn = true` (mode `paper` only: it needs the
+//! EKF's bias) a `SlopeLearner` refines `p1` from the bias held in
+//! quasi-static samples after the learning window and `learn_after_s`;
+//! `slope_state` / `set_slope_state` save and restore what it learned.
 
 use crate::adis::Sample;
 use crate::config::{Config, Mode};

@@ -25,6 +25,16 @@ enum Cmd {
         csv: Option<PathBuf>,
     },
     /// Fit the thermal bias curve from thermal-chamber runs (candump logs of a static sensor).
+    ///
+    /// One log per power cycle, recorded from power-on while the sensor
+    /// self-heats in the chamber. Each run's warm-up transient is found by a
+    /// joint fit of `c_run + curve(T) + A exp(-t/tau)` (tau 5..300 s) and cut at
+    /// 5 tau when significant (|A| > 5 standard errors); each run's own turn-on
+    /// bias `c_run` is removed; the shared curve is fitted by least squares on
+    /// 1-s means about the config's `[thermal] t0` (default 25 C), with 95 %
+    /// intervals. Corrupt logs (over 1 % bad lines or checksum failures),
+    /// empty or shorter than 120 s are refused by name. Details: the
+    /// `gyrocomp::calibrate` module documentation.
     Calibrate {
         #[arg(long)]
         config: Option<PathBuf>,

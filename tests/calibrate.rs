@@ -359,3 +359,18 @@ fn write_demo_logs() {
         eprintln!("wrote {}", p.display());
     }
 }
+
+/// Not a check: one 30-min run at the profile's own 204.8 Hz into
+/// $GYROCOMP_DEMO_DIR/full_rate.log (for timing the reader on real-size logs).
+#[test]
+#[ignore]
+fn write_full_rate_log() {
+    let dir = PathBuf::from(std::env::var("GYROCOMP_DEMO_DIR").expect("set GYROCOMP_DEMO_DIR"));
+    std::fs::create_dir_all(&dir).unwrap();
+    let c = Config::default();
+    let mut r = ChamberRun::new(20.0, 5);
+    r.duration_s = 1800.0;
+    r.heat_tau_s = 600.0;
+    r.warmup_amp = [0.1, -0.1, 0.2];
+    r.write_file(&c, &paper(), &dir.join("full_rate.log")).unwrap();
+}
