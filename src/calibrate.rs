@@ -918,9 +918,11 @@ impl Calibration {
             self.plot_axis(&p, i, &th).map_err(|msg| CalError::Output { path: p.display().to_string(), msg })?;
             out.push(p);
         }
+        // the warm-up plots show the data the fit saw, also outside the calibrated range: no clamp
+        let unclamped = Thermal { t_min: f64::NEG_INFINITY, t_max: f64::INFINITY, ..th.clone() };
         for k in 0..self.runs.len() {
             let p = dir.join(format!("warmup_run{}.svg", k + 1));
-            self.plot_run(&p, k, &th).map_err(|msg| CalError::Output { path: p.display().to_string(), msg })?;
+            self.plot_run(&p, k, &unclamped).map_err(|msg| CalError::Output { path: p.display().to_string(), msg })?;
             out.push(p);
         }
         Ok(out)
