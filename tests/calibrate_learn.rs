@@ -81,23 +81,35 @@ fn cfg(learn: bool) -> String {
     cfg_with(learn, TRUE_P1.map(|v| 0.7 * v), "")
 }
 
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
 #[test]
 fn learned_slope_ends_within_10_percent_and_gyro_only_error_drops() {
-    let (off, e_off) = run(&cfg(false), 3000.0, 1);
-    let (on, e_on) = run(&cfg(true), 3000.0, 1);
-    eprintln!("slope off {:?}\nslope on  {:?}\ntrue      {:?}", off.slope, on.slope, TRUE_P1);
-    eprintln!("max attitude error in the gyro-only stretch, deg: off {:?} on {:?}", off.max_err, on.max_err);
-    assert!(e_off.slope_state().is_none());
-    for i in 0..3 {
-        assert_eq!(off.slope[i], 0.7 * TRUE_P1[i], "learning off: the configured slope stays");
-        let err = (on.slope[i] - TRUE_P1[i]) / TRUE_P1[i];
-        assert!(err.abs() < 0.10, "axis {i}: learned {} vs {} ({:.1} %)", on.slope[i], TRUE_P1[i], 100.0 * err);
+    let mut last = None;
+    for seed in 1..=3 {
+        let (off, e_off) = run(&cfg(false), 3000.0, seed);
+        let (on, e_on) = run(&cfg(true), 3000.0, seed);
+        eprintln!("seed {seed}: slope off {:?}\n        slope on  {:?}\n        true      {:?}", off.slope, on.slope, TRUE_P1);
+        eprintln!("        max |roll|, |pitch|, |yaw| error in the gyro-only stretch, deg: off {:?} on {:?}", off.max_err, on.max_err);
+        assert!(e_off.slope_state().is_none());
+        for i in 0..3 {
+            assert_eq!(off.slope[i], 0.7 * TRUE_P1[i], "learning off: the configured slope stays");
+            let err = (on.slope[i] - TRUE_P1[i]) / TRUE_P1[i];
+            assert!(err.abs() < 0.10, "seed {seed} axis {i}: learned {} vs {} ({:.1} %)", on.slope[i], TRUE_P1[i], 100.0 * err);
+        }
+        // yaw (largest slope, no measurement in the gyro-only stretch) and pitch
+        // drop at least threefold; roll's error (slope 0.002 deg/s/C) is
+        // dominated by the EKF's bias error at the switch, not by the slope, so
+        // only the total is asserted for it
+        assert!(on.max_err[2] < off.max_err[2] / 3.0, "seed {seed}: {:?} vs {:?}", on.max_err, off.max_err);
+        assert!(on.max_err[1] < off.max_err[1] / 3.0, "seed {seed}: {:?} vs {:?}", on.max_err, off.max_err);
+        assert!(norm(on.max_err) < norm(off.max_err) / 3.0);
+        assert!(!on.clamp_seen && !off.clamp_seen);
+        last = Some((on, e_on));
     }
-    // the yaw error (the axis with the largest slope, not corrected by any
-    // measurement in the gyro-only stretch) drops at least threefold
-    assert!(on.max_err[2] < off.max_err[2] / 3.0, "{:?} vs {:?}", on.max_err, off.max_err);
-    assert!(on.max_err[0] < off.max_err[0] && on.max_err[1] < off.max_err[1]);
-    assert!(!on.clamp_seen && !off.clamp_seen);
+    let (on, e_on) = last.unwrap();
     // what is saved and restored
     let st = e_on.slope_state().unwrap();
     assert!(st.spread > 15.0, "{st:?}");
@@ -138,3 +150,4 @@ fn the_learned_slope_is_bounded() {
     let (on, _) = run(&text, 3000.0, 3);
     assert!((on.slope[2] - (0.7 * TRUE_P1[2] + 0.001)).abs() < 1e-12, "{:?}", on.slope);
 }
+
