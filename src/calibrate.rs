@@ -651,7 +651,7 @@ pub fn calibrate_runs(runs: &[Run], order: u8, t0: f64) -> Result<Calibration, C
             cuts[r] = (CUT_TAUS * taus[r]).min(rep.duration_s);
             if taus[r] >= TAU_MAX_S * 0.999 {
                 warnings.push(format!(
-                    "{}: warm-up transient at least as slow as the {TAU_MAX_S:.0} s limit: it cannot be told from self-heating; cut {:.0} s may be short",
+                    "{}: warm-up transient at least as slow as the {TAU_MAX_S:.0} s limit: it cannot be told from self-heating (or the curve needs a higher --order); cut {:.0} s may be short",
                     rep.name, cuts[r]
                 ));
             }
