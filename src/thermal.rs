@@ -216,7 +216,7 @@ impl SlopeLearner {
     /// axis, weight `w` (seconds of data it stands for).
     #[inline]
     pub fn push(&mut self, t: f64, y: [f64; 3], w: f64) {
-        if !(w > 0.0) || !t.is_finite() || !y.iter().all(|v| v.is_finite()) {
+        if !(w.is_finite() && w > 0.0) || !t.is_finite() || !y.iter().all(|v| v.is_finite()) {
             return;
         }
         let w1 = self.w + w;
@@ -237,7 +237,7 @@ impl SlopeLearner {
 
     fn update(&mut self) {
         let stt = self.past.stt + self.mtt;
-        if self.spread() < self.params.min_spread || !(stt > 0.0) {
+        if self.spread() < self.params.min_spread || stt.is_nan() || stt <= 0.0 {
             self.correction = [0.0; 3];
             return;
         }
