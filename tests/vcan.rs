@@ -151,13 +151,13 @@ set -u
 gyrocomp run --config live.toml 2> daemon.err &
 D=$!
 {WAIT_READY}
-candump -L vcan0,110:7FC > live1.log &
+candump -r 8388608 -L vcan0,110:7FC > live1.log &
 C=$!
 sleep 0.5
 canplayer -I clean.log vcan0=vcan0
 sleep 0.5
 kill $C
-candump -L vcan0,110:7FC > live2.log &
+candump -r 8388608 -L vcan0,110:7FC > live2.log &
 C=$!
 sleep 0.5
 canplayer -I faults.log vcan0=vcan0
@@ -168,7 +168,7 @@ ip link set vcan0 down
 sleep 1
 ip link set vcan0 up
 sleep 2.5
-candump -L vcan0,110:7FC > live3.log &
+candump -r 8388608 -L vcan0,110:7FC > live3.log &
 C=$!
 sleep 0.5
 canplayer -I after.log vcan0=vcan0
@@ -181,7 +181,7 @@ sleep 1
 ip link add dev vcan0 type vcan
 ip link set vcan0 up
 sleep 3
-candump -L vcan0,110:7FC > live4.log &
+candump -r 8388608 -L vcan0,110:7FC > live4.log &
 C=$!
 sleep 0.5
 canplayer -I recreated.log vcan0=vcan0

@@ -178,6 +178,13 @@ fn build_pipeline(cfg: &Config, store: Option<&Store>, carry: Option<crate::esti
                 let p = st.prior(now_unix(), cfg.ekf.bias_walk, 0.0);
                 info!(bias = ?p.bias, sigma = ?p.bias_sigma, temp = p.temp, path = %store.path.display(), "loaded learned bias");
                 pipe.estimator_mut().set_prior(p);
+                if let Some(sl) = &st.slope {
+                    if pipe.estimator_mut().set_slope_state(sl) {
+                        info!(cycles = sl.cycles, spread = sl.spread, "loaded the thermal slope learner");
+                    } else {
+                        warn!("saved thermal slope learner ignored (learning off, or saved under another p1)");
+                    }
+                }
             }
             Ok(None) => info!(path = %store.path.display(), "no saved state; starting from the config"),
             Err(e) => warn!("{e}"),
@@ -188,7 +195,7 @@ fn build_pipeline(cfg: &Config, store: Option<&Store>, carry: Option<crate::esti
 
 fn save_state(store: Option<&Store>, pipe: &Pipeline) {
     let (Some(store), Some(l)) = (store, pipe.estimator().learned()) else { return };
-    match store.save(&State::from_learned(&l, now_unix(), None)) {
+    match store.save(&State::from_learned(&l, now_unix(), pipe.estimator().slope_state())) {
         Ok(()) => tracing::debug!(path = %store.path.display(), "state saved"),
         Err(e) => warn!("saving state: {e}"),
     }

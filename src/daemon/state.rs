@@ -7,6 +7,7 @@
 //! warning rather than trusted.
 
 use crate::estimator::Learned;
+use crate::thermal::SlopeState;
 use serde::{Deserialize, Serialize};
 use std::fs::{self, File};
 use std::io::Write;
@@ -27,9 +28,9 @@ pub struct State {
     pub temp: f64,
     /// Wall-clock time of the save, seconds since the Unix epoch.
     pub saved_unix: f64,
-    /// Learned thermal slope per axis (deg/s per deg C), when field learning is on.
+    /// The thermal slope learner's sums, when field learning is on.
     #[serde(default)]
-    pub slope: Option<[f64; 3]>,
+    pub slope: Option<SlopeState>,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -48,7 +49,7 @@ pub enum StateError {
 }
 
 impl State {
-    pub fn from_learned(l: &Learned, saved_unix: f64, slope: Option<[f64; 3]>) -> State {
+    pub fn from_learned(l: &Learned, saved_unix: f64, slope: Option<SlopeState>) -> State {
         State { version: VERSION, bias: l.bias, bias_sigma: l.bias_sigma, temp: l.temp, saved_unix, slope }
     }
 
@@ -70,7 +71,11 @@ impl State {
         }
         let ts = [self.temp, self.saved_unix];
         let all = self.bias.iter().chain(self.bias_sigma.iter()).chain(ts.iter());
-        for v in all.chain(self.slope.iter().flatten()) {
+        let sl: Vec<f64> = match &self.slope {
+            Some(s) => s.base.iter().chain(s.sty.iter()).copied().chain([s.stt, s.spread]).collect(),
+            None => Vec::new(),
+        };
+        for v in all.chain(sl.iter()) {
             if !v.is_finite() {
                 return Err("a value is not finite".into());
             }
@@ -150,6 +155,11 @@ mod tests {
         s.save(&st()).unwrap();
         assert_eq!(s.load().unwrap(), Some(st()));
         assert!(!d.path().join("gyrocomp-state.json.tmp").exists());
+        // with the slope learner's sums
+        let sl = SlopeState { base: [0.002, 0.0044, 0.0192], stt: 12.5, sty: [0.01, -0.02, 0.03], spread: 7.5, cycles: 2 };
+        let with = State { slope: Some(sl), ..st() };
+        s.save(&with).unwrap();
+        assert_eq!(s.load().unwrap(), Some(with));
     }
 
     #[test]
