@@ -281,6 +281,7 @@ D=$!
 {WAIT_READY}
 canplayer -I fast.log vcan0=vcan0
 sleep 1
+grep -E "VmHWM|VmRSS" /proc/$D/status
 {STOP}
 "#
     );
@@ -289,4 +290,11 @@ sleep 1
     assert!(ok, "VM run failed:\n{console}");
     let e = std::fs::read_to_string(&err).unwrap();
     assert!(e.contains(&format!("samples={n} dropped=0 lost=0")), "daemon summary:\n{e}");
+    // peak resident memory after 60 s at 2 kHz: at most 10 MiB
+    let hwm: u64 = console
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:").map(|v| v.trim().trim_end_matches("kB").trim().parse().unwrap()))
+        .expect("VmHWM line");
+    println!("daemon peak RSS at 2 kHz: {hwm} kB");
+    assert!(hwm <= 10 * 1024, "peak RSS {hwm} kB > 10 MiB");
 }

@@ -75,13 +75,23 @@ impl RateLimited {
     }
 }
 
-/// The daemon's sink: output frames into the writer's queue.
-struct BusSink<'a> {
+/// The daemon's sink: output frames into the writer's queue (never waits).
+pub struct BusSink<'a> {
     tx: &'a mpsc::Sender<CanFrame>,
     shell: &'a ShellCounters,
     last: Option<Estimate>,
     samples: u64,
     drop_logs: [RateLimited; 6],
+}
+
+impl<'a> BusSink<'a> {
+    pub fn new(tx: &'a mpsc::Sender<CanFrame>, shell: &'a ShellCounters) -> BusSink<'a> {
+        BusSink { tx, shell, last: None, samples: 0, drop_logs: std::array::from_fn(|_| RateLimited::new(Duration::from_secs(10))) }
+    }
+    /// Samples output so far.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
 }
 
 fn can_frame(f: &OutFrame) -> Option<CanFrame> {
@@ -240,13 +250,7 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
 
     let mut store = state_dir(&cfg).map(|d| Store::new(&d));
     let mut pipe = build_pipeline(&cfg, store.as_ref(), None);
-    let mut sink = BusSink {
-        tx: &tx,
-        shell: &shell,
-        last: None,
-        samples: 0,
-        drop_logs: std::array::from_fn(|_| RateLimited::new(Duration::from_secs(10))),
-    };
+    let mut sink = BusSink::new(&tx, &shell);
     let mut backoff = Duration::from_millis(100);
     let mut open_log = RateLimited::new(Duration::from_secs(10));
     let mut last_sample = Instant::now();
@@ -461,7 +465,7 @@ mod tests {
     fn full_output_queue_drops_and_counts_without_blocking() {
         let (tx, _rx) = mpsc::channel::<CanFrame>(4);
         let shell = ShellCounters::default();
-        let mut sink = BusSink { tx: &tx, shell: &shell, last: None, samples: 0, drop_logs: std::array::from_fn(|_| RateLimited::new(Duration::from_secs(10))) };
+        let mut sink = BusSink::new(&tx, &shell);
         let est = Estimate::default();
         let frames = encode(&est, &StatusCounters::default(), &crate::config::OutputConfig::default(), 0);
         sink.output(&est, &frames); // fills the queue
