@@ -28,6 +28,8 @@ enum Cmd {
     CheckConfig { file: PathBuf },
     /// Simulate a scenario: DIR/imu.log (ADIS on CAN), truth.csv, sensor.toml, bias.csv, scenario.toml, config.toml.
     Simulate(gyrocomp::sim::cli::SimulateArgs),
+    /// Replay a simulated run (or many seeds) and score it against the truth.
+    Evaluate(gyrocomp::evaluate::EvaluateArgs),
 }
 
 fn load_config(p: &Option<PathBuf>) -> Result<Config, String> {
@@ -43,6 +45,7 @@ fn main() -> ExitCode {
         Cmd::Replay { config, input, output, csv } => cmd_replay(config, input, output, csv),
         Cmd::CheckConfig { file } => Config::load(&file).map(|c| print!("{}", c.to_toml())).map_err(|e| e.to_string()),
         Cmd::Simulate(a) => gyrocomp::sim::cli::run(&a),
+        Cmd::Evaluate(a) => gyrocomp::evaluate::run(&a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,
