@@ -232,6 +232,10 @@ pub struct RobustConfig {
     pub max_bias_step: f64,
     /// 1-sigma of roll/pitch from the low-passed accelerometer, deg.
     pub tilt_sigma_deg: f64,
+    /// Time constant with which yaw follows the magnetometer heading, s
+    /// (a PI loop outside the EKF covariance; the z bias learns from it when
+    /// quasi-static).
+    pub yaw_tau_s: f64,
     /// Fuse the tilt in the blend band (angles only, noise growing as the
     /// blend weight falls, gated).
     pub blend: bool,
@@ -247,6 +251,7 @@ impl Default for RobustConfig {
             lockout_s: 30.0,
             max_bias_step: 0.0005,
             tilt_sigma_deg: 0.3,
+            yaw_tau_s: 10.0,
             blend: true,
         }
     }
@@ -444,6 +449,7 @@ impl Config {
         positive("robust.lockout_s", r.lockout_s)?;
         positive("robust.max_bias_step", r.max_bias_step)?;
         positive("robust.tilt_sigma_deg", r.tilt_sigma_deg)?;
+        positive("robust.yaw_tau_s", r.yaw_tau_s)?;
         let o = &self.output;
         let oids = [o.rate_id, o.attitude_id, o.bias_id, o.status_id];
         for (k, v) in ["output.rate_id", "output.attitude_id", "output.bias_id", "output.status_id"].iter().zip(oids) {

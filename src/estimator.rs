@@ -130,6 +130,8 @@ struct Robust {
     blend: bool,
     /// Gyro-compensated low-passed specific force, g (None until the first sample).
     f_lp: Option<Vector3<f64>>,
+    /// Time constant of the yaw loop, s.
+    yaw_tau: f64,
     /// Low-passed heading rate (rad/s).
     yaw_rate_lp: f64,
     /// Seconds the quasi-static conditions have held.
@@ -184,6 +186,7 @@ impl Estimator {
                 blend: cfg.robust.blend,
                 f_lp: None,
                 yaw_rate_lp: 0.0,
+                yaw_tau: cfg.robust.yaw_tau_s,
                 dwell: 0.0,
                 refused: 0.0,
             },
@@ -457,16 +460,21 @@ impl Estimator {
                 *fl |= flags::GATED;
             }
         }
-        // Yaw: the magnetometer is not disturbed by acceleration; fuse it on
-        // its own whenever its innovation is plausible, teaching the bias
-        // only when quasi-static.
-        if self.use_mag {
+        // Yaw: the magnetometer is not disturbed by acceleration, but its
+        // heading is computed with the filter's own roll and pitch; fusing it
+        // inside the EKF lets heading errors pull the tilt and the x/y bias
+        // through their correlations. So yaw is corrected outside the EKF's
+        // covariance by a critically damped PI loop: yaw follows the heading
+        // with time constant `yaw_tau_s`, and (quasi-static only) the z bias
+        // learns from the persistent part of the difference.
+        if self.use_mag && dt > 0.0 {
             let zy = wrap_pi(heading_from_mag(&s.magn, self.ekf.att[0], self.ekf.att[1]) + self.declination);
             let nu = wrap_pi(zy - self.ekf.att[2]);
-            let sy = self.ekf.paa[(2, 2)] + self.r_yaw;
-            if nu * nu / sy <= self.robust.gate.max(9.0) * 4.0 {
-                let learn = if warm || mode != 0 { Learn::AnglesOnly } else { Learn::AnglesAndBias };
-                self.ekf.update_yaw(zy, self.r_yaw, learn, self.robust.max_db);
+            let om = 1.0 / self.robust.yaw_tau;
+            self.ekf.att[2] = wrap_pi(self.ekf.att[2] + 2.0 * om * nu * dt);
+            if !warm && mode == 0 {
+                let db = (0.01 * om * om * nu * dt).clamp(-self.robust.max_db, self.robust.max_db);
+                self.ekf.bias[2] -= db;
             }
         }
         mode
