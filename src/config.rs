@@ -28,6 +28,7 @@ pub struct Config {
     pub ekf: EkfConfig,
     pub switching: SwitchingConfig,
     pub thermal: ThermalConfig,
+    pub robust: RobustConfig,
     pub output: OutputConfig,
     pub daemon: DaemonConfig,
 }
@@ -87,6 +88,12 @@ pub enum Mode {
     StartupThermal,
     /// Paper case 3: EKF + thermal curve anchored at the last EKF bias + switching, as published.
     Paper,
+    /// The paper's structure (EKF bias learning when quasi-static, thermal
+    /// curve anchored at the last EKF bias, bands from `[switching]`) with
+    /// the guards of `[robust]`: decisions on a gyro-compensated low-passed
+    /// specific force, a dwell time, a turn-rate gate, innovation gating with
+    /// a bounded lock-out, a bounded bias step, yaw fused on its own.
+    Robust,
 }
 
 impl Mode {
@@ -95,6 +102,7 @@ impl Mode {
             Mode::StartupAverage => "startup_average",
             Mode::StartupThermal => "startup_thermal",
             Mode::Paper => "paper",
+            Mode::Robust => "robust",
         }
     }
 }
@@ -121,7 +129,7 @@ pub struct EstimatorConfig {
 impl Default for EstimatorConfig {
     fn default() -> Self {
         EstimatorConfig {
-            mode: Mode::Paper,
+            mode: Mode::Robust,
             g0_window_s: 1.0,
             warmup_s: 10.0,
             learn_s: 60.0,
@@ -238,6 +246,57 @@ impl Default for ThermalConfig {
             learn_after_s: 600.0,
             learn_min_spread: 5.0,
             learn_max_dev: [0.01; 3],
+        }
+    }
+}
+
+/// `[robust]`: the guards of `mode = "robust"` (ignored by the other modes).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RobustConfig {
+    /// Time constant of the low-pass on the specific force, s. The filter
+    /// runs in the body frame rotated by the (bias-corrected) gyro, so
+    /// gravity passes without lag while vibration and short accelerations
+    /// are averaged out; band decisions and tilt measurements use its output.
+    pub accel_tau_s: f64,
+    /// The low-passed |a| must stay in the inner band (with the jerk and
+    /// turn-rate criteria quiet) this long before the accelerometer is fused, s.
+    pub dwell_s: f64,
+    /// Largest |bias-corrected angular rate| still counted as quasi-static,
+    /// deg/s (a turn means centripetal acceleration the |a| test cannot see).
+    pub turn_rate_dps: f64,
+    /// Innovation gate: a tilt (or yaw) measurement whose normalised
+    /// innovation squared exceeds gate_sigma^2 is refused.
+    pub gate_sigma: f64,
+    /// Seconds of refused measurements in quasi-static conditions after
+    /// which the angle covariance is widened to the size of the innovation,
+    /// so the gate cannot lock the accelerometer out forever.
+    pub lockout_s: f64,
+    /// Largest change of the bias one update may make, deg/s per axis.
+    pub max_bias_step: f64,
+    /// 1-sigma of roll/pitch from the low-passed accelerometer, deg.
+    pub tilt_sigma_deg: f64,
+    /// Time constant with which yaw follows the magnetometer heading, s
+    /// (a PI loop outside the EKF covariance; the z bias learns from it when
+    /// quasi-static).
+    pub yaw_tau_s: f64,
+    /// Fuse the tilt in the blend band (angles only, noise growing as the
+    /// blend weight falls, gated).
+    pub blend: bool,
+}
+
+impl Default for RobustConfig {
+    fn default() -> Self {
+        RobustConfig {
+            accel_tau_s: 1.0,
+            dwell_s: 2.0,
+            turn_rate_dps: 1.0,
+            gate_sigma: 3.0,
+            lockout_s: 30.0,
+            max_bias_step: 0.0005,
+            tilt_sigma_deg: 0.3,
+            yaw_tau_s: 10.0,
+            blend: true,
         }
     }
 }
@@ -451,6 +510,15 @@ impl Config {
         }
         non_negative("thermal.learn_after_s", t.learn_after_s)?;
         positive("thermal.learn_min_spread", t.learn_min_spread)?;
+        let r = &self.robust;
+        positive("robust.accel_tau_s", r.accel_tau_s)?;
+        non_negative("robust.dwell_s", r.dwell_s)?;
+        positive("robust.turn_rate_dps", r.turn_rate_dps)?;
+        positive("robust.gate_sigma", r.gate_sigma)?;
+        positive("robust.lockout_s", r.lockout_s)?;
+        positive("robust.max_bias_step", r.max_bias_step)?;
+        positive("robust.tilt_sigma_deg", r.tilt_sigma_deg)?;
+        positive("robust.yaw_tau_s", r.yaw_tau_s)?;
         let o = &self.output;
         let oids = [o.rate_id, o.attitude_id, o.bias_id, o.status_id];
         for (k, v) in ["output.rate_id", "output.attitude_id", "output.bias_id", "output.status_id"].iter().zip(oids) {
@@ -508,6 +576,9 @@ mod tests {
         assert!(bad("[thermal]\nlearn_min_spread = 0.0").contains("thermal.learn_min_spread"));
         assert!(bad("[thermal]\nlearn_max_dev = [0.01, -0.01, 0.01]").contains("thermal.learn_max_dev[1]"));
         assert!(bad("[estimator]\nmode = \"magic\"").contains("mode"));
+        assert!(bad("[robust]\ngate_sigma = 0.0").contains("robust.gate_sigma"));
+        assert!(bad("[robust]\naccel_tau_s = -1.0").contains("robust.accel_tau_s"));
+        assert!(bad("[robust]\ndwell_s = nan").contains("robust.dwell_s"));
         assert!(bad("[output]\nrate_id = 0x100").contains("output.rate_id"));
     }
 

@@ -125,6 +125,32 @@ pub struct Estimator {
     prior: Option<Learned>,
     /// The bias and temperature of the last quasi-static (mode 0) sample.
     last_fused: Option<(f64, [f64; 3])>,
+    robust: Robust,
+}
+
+/// State and settings of `mode = "robust"`.
+#[derive(Clone, Debug)]
+struct Robust {
+    /// Low-pass time constant (s), dwell (s), turn-rate gate (rad/s),
+    /// NIS gate, lock-out (s), bias step (rad/s), tilt variance (rad^2).
+    tau: f64,
+    dwell_need: f64,
+    turn_rate: f64,
+    gate: f64,
+    lockout: f64,
+    max_db: f64,
+    r_tilt: f64,
+    blend: bool,
+    /// Gyro-compensated low-passed specific force, g (None until the first sample).
+    f_lp: Option<Vector3<f64>>,
+    /// Time constant of the yaw loop, s.
+    yaw_tau: f64,
+    /// Low-passed heading rate (rad/s).
+    yaw_rate_lp: f64,
+    /// Seconds the quasi-static conditions have held.
+    dwell: f64,
+    /// Seconds of refused tilt measurements under quasi-static conditions.
+    refused: f64,
 }
 
 impl Estimator {
@@ -168,6 +194,21 @@ impl Estimator {
             learn_done: false,
             prior: None,
             last_fused: None,
+            robust: Robust {
+                tau: cfg.robust.accel_tau_s,
+                dwell_need: cfg.robust.dwell_s,
+                turn_rate: cfg.robust.turn_rate_dps * D2R,
+                gate: cfg.robust.gate_sigma * cfg.robust.gate_sigma,
+                lockout: cfg.robust.lockout_s,
+                max_db: cfg.robust.max_bias_step * D2R,
+                r_tilt: (cfg.robust.tilt_sigma_deg * D2R).powi(2),
+                blend: cfg.robust.blend,
+                f_lp: None,
+                yaw_rate_lp: 0.0,
+                yaw_tau: cfg.robust.yaw_tau_s,
+                dwell: 0.0,
+                refused: 0.0,
+            },
         }
     }
 
@@ -341,6 +382,9 @@ impl Estimator {
                     self.learn_n += 1;
                 }
             }
+            Mode::Robust => {
+                mode = self.step_robust(s, &omega, dt, dec.jerk, warm, &mut fl);
+            }
             Mode::StartupAverage | Mode::StartupThermal => {
                 if s.suspect() {
                     fl |= flags::SUSPECT;
@@ -404,6 +448,96 @@ impl Estimator {
             flags: fl,
             ratio: dec.ratio,
         }
+    }
+
+    /// One sample of `mode = "robust"`; returns the mode (0 fusion, 1 blend, 2 gyro only).
+    fn step_robust(&mut self, s: &Sample, omega: &Vector3<f64>, dt: f64, jerk: bool, warm: bool, fl: &mut u16) -> u8 {
+        let rb = &mut self.robust;
+        let f = Vector3::new(s.accel[0], s.accel[1], s.accel[2]);
+        // Gyro-compensated low-pass: a vector fixed in NED turns in the body
+        // frame as df/dt = -w x f; gravity then passes without lag.
+        let w = omega - self.ekf.bias;
+        let f_lp = match rb.f_lp {
+            None => f,
+            Some(lp) => {
+                let rot = lp - w.cross(&lp) * dt;
+                rot + (f - rot) * (dt / rb.tau).min(1.0)
+            }
+        };
+        rb.f_lp = Some(f_lp);
+        let ratio = f_lp.norm() / self.g0;
+        let (band, weight) = self.switching.band(ratio);
+        // Turning at speed means a centripetal acceleration that |a| hardly
+        // shows (0.1 g changes |a| by 0.5 %): gate on the low-passed heading rate.
+        let (sr, cr) = self.ekf.att[0].sin_cos();
+        let cp = self.ekf.att[1].cos().max(1e-3);
+        let yaw_rate = (sr * w[1] + cr * w[2]) / cp;
+        let a = (dt / rb.tau).min(1.0);
+        rb.yaw_rate_lp += (yaw_rate - rb.yaw_rate_lp) * a;
+        let turning = rb.yaw_rate_lp.abs() > rb.turn_rate;
+        let quiet = band == Band::Inner && !jerk && !turning && !s.suspect();
+        rb.dwell = if quiet { rb.dwell + dt } else { 0.0 };
+        if s.suspect() {
+            *fl |= flags::SUSPECT;
+            return 2;
+        }
+        let (roll, pitch) = tilt_from_accel(&[f_lp[0], f_lp[1], f_lp[2]]);
+        let z = Vector3::new(roll, pitch, 0.0);
+        let mut mode = 2u8;
+        if quiet && rb.dwell >= rb.dwell_need {
+            let r = Vector3::new(rb.r_tilt, rb.r_tilt, 1.0);
+            if self.ekf.nis(&z, &r, false) <= rb.gate {
+                let learn = if warm { Learn::AnglesOnly } else { Learn::AnglesAndBias };
+                self.ekf.update_limited(&z, &r, false, learn, rb.max_db);
+                rb.refused = 0.0;
+                mode = 0;
+                if !warm {
+                    self.last_fused = Some((s.temp, [self.ekf.bias[0] * R2D, self.ekf.bias[1] * R2D, self.ekf.bias[2] * R2D]));
+                }
+            } else {
+                *fl |= flags::GATED;
+                rb.refused += dt;
+                if rb.refused >= rb.lockout {
+                    // Refused for too long while everything says quasi-static:
+                    // widen the angle covariance to the innovation so the
+                    // accelerometer is heard again.
+                    let d0 = wrap_pi(roll - self.ekf.att[0]);
+                    let d1 = pitch - self.ekf.att[1];
+                    let v = d0 * d0 + d1 * d1;
+                    self.ekf.paa[(0, 0)] += v;
+                    self.ekf.paa[(1, 1)] += v;
+                    rb.refused = 0.0;
+                }
+            }
+        } else if rb.blend && band == Band::Blend && !jerk && !turning {
+            // Angles only, noise growing as the blend weight falls; gated.
+            let k = 1.0 / (weight * weight).max(1e-6);
+            let r = Vector3::new(rb.r_tilt * k, rb.r_tilt * k, 1.0);
+            if self.ekf.nis(&z, &r, false) <= rb.gate {
+                self.ekf.update_limited(&z, &r, false, Learn::AnglesOnly, rb.max_db);
+                mode = 1;
+            } else {
+                *fl |= flags::GATED;
+            }
+        }
+        // Yaw: the magnetometer is not disturbed by acceleration, but its
+        // heading is computed with the filter's own roll and pitch; fusing it
+        // inside the EKF lets heading errors pull the tilt and the x/y bias
+        // through their correlations. So yaw is corrected outside the EKF's
+        // covariance by a critically damped PI loop: yaw follows the heading
+        // with time constant `yaw_tau_s`, and (quasi-static only) the z bias
+        // learns from the persistent part of the difference.
+        if self.use_mag && dt > 0.0 {
+            let zy = wrap_pi(heading_from_mag(&s.magn, self.ekf.att[0], self.ekf.att[1]) + self.declination);
+            let nu = wrap_pi(zy - self.ekf.att[2]);
+            let om = 1.0 / self.robust.yaw_tau;
+            self.ekf.att[2] = wrap_pi(self.ekf.att[2] + 2.0 * om * nu * dt);
+            if !warm && mode == 0 {
+                let db = (0.01 * om * om * nu * dt).clamp(-self.robust.max_db, self.robust.max_db);
+                self.ekf.bias[2] -= db;
+            }
+        }
+        mode
     }
 
     fn bias_deg(&self) -> [f64; 3] {

@@ -60,6 +60,8 @@ enum Cmd {
     },
     /// Simulate a scenario: DIR/imu.log (ADIS on CAN), truth.csv, sensor.toml, bias.csv, scenario.toml, config.toml.
     Simulate(gyrocomp::sim::cli::SimulateArgs),
+    /// Replay a simulated run (or many seeds) and score it against the truth.
+    Evaluate(gyrocomp::evaluate::EvaluateArgs),
 }
 
 fn load_config(p: &Option<PathBuf>) -> Result<Config, String> {
@@ -80,6 +82,7 @@ fn main() -> ExitCode {
         Cmd::Calibrate { config, input, order, write, plot } => cmd_calibrate(config, input, order, write, plot),
         Cmd::CheckConfig { file } => Config::load(&file).map(|c| print!("{}", c.to_toml())).map_err(|e| e.to_string()),
         Cmd::Simulate(a) => gyrocomp::sim::cli::run(&a),
+        Cmd::Evaluate(a) => gyrocomp::evaluate::run(&a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,97 @@
+//! `gyrocomp evaluate` scores known cases right.
+
+use gyrocomp::config::Config;
+use gyrocomp::evaluate::{evaluate_dir, oracle, score, EvalOptions, RunData};
+use gyrocomp::sim::model::SensorModel;
+use gyrocomp::sim::{simulate, SimOptions};
+
+const NO_WALK: &str = "[noise]\ngyro_white = 0.0135\ngyro_bias_walk = 0.0\naccel_white = 0.00023\nmagn_white = 0.0005\ntemp_white = 0.0\n";
+
+#[test]
+fn a_known_thermal_bias_error_is_scored_right() {
+    // At rest; turn-on bias plus 0.02 deg/s/C on x only. The start-up average
+    // (30 s after 1 s) learns the bias at the mean temperature of its window
+    // and never follows the temperature: the x bias error and the roll error
+    // it integrates to are known from the truth temperature.
+    let model = SensorModel::parse(&format!(
+        "[gyro]\neffects = [\"turn_on_bias\", \"thermal_linear\"]\n[gyro.turn_on_bias]\nbias = [0.32, -0.12, 0.48]\n\
+         [gyro.thermal_linear]\nt0 = 25.0\np1 = [0.02, 0.0, 0.0]\n{NO_WALK}"
+    ))
+    .unwrap();
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("run");
+    let mut o = SimOptions::new("static", 9);
+    o.duration = Some(200.0);
+    o.model = Some(model);
+    simulate(&o, &dir).unwrap();
+    let data = RunData::load(&dir).unwrap();
+    let cfg = Config::parse("[estimator]\nmode = \"startup_average\"\nwarmup_s = 1.0\nlearn_s = 30.0\n", "t").unwrap();
+    let (est, ms) = data.estimates(&cfg).unwrap();
+    let m = score("sa", &data, &est, ms, 31.5);
+    let m_all = score("sa", &data, &est, ms, 0.0);
+    assert!((ms[2] - 200.0).abs() < 0.01, "time in gyro-only {ms:?}");
+    let tr = &data.truth;
+    let win: Vec<f64> = tr.iter().filter(|r| r.t >= 1.0 && r.t <= 31.0).map(|r| r.temp).collect();
+    let tbar = win.iter().sum::<f64>() / win.len() as f64;
+    let t_end = tr.last().unwrap().temp;
+    let want_bias = 0.02 * (t_end - tbar);
+    assert!(want_bias > 0.05, "the run must heat: {want_bias}");
+    assert!((m.bias_max[0] - want_bias).abs() < 0.005, "bias error x {} vs {want_bias}", m.bias_max[0]);
+    assert!(m.bias_max[1] < 0.005 && m.bias_max[2] < 0.005, "{:?}", m.bias_max);
+    let dt = 1.0 / 204.8;
+    // before the window closes the bias held is 0: the whole true bias integrates
+    let before: f64 = tr.iter().zip(&data.bias).filter(|(r, _)| r.t <= 31.0).map(|(_, b)| b[0] * dt).sum();
+    let want_roll: f64 = before + tr.iter().filter(|r| r.t > 31.0).map(|r| 0.02 * (r.temp - tbar) * dt).sum::<f64>();
+    assert!(want_roll > 1.0);
+    assert!((m_all.max_err[0] - want_roll).abs() < 0.05 * want_roll + 0.2, "roll max {} vs {want_roll}", m_all.max_err[0]);
+    // The oracle knows the thermal slope: only white noise and quantisation remain.
+    let (orc, _) = oracle(&data, &est, 0.0);
+    assert!(orc.max_err[0] < 0.2 && orc.max_err[1] < 0.2, "oracle {:?}", orc.max_err);
+}
+
+#[test]
+fn the_oracle_removes_every_deterministic_effect() {
+    // Moving vehicle, every rate-dependent effect on, no noise: the oracle
+    // integrates to the truth; the same gyro without the correction does not.
+    let model = SensorModel::parse(
+        "[gyro]\neffects = [\"turn_on_bias\", \"g_sensitivity\", \"scale_factor\", \"misalignment\", \"warmup_transient\"]\n\
+         [gyro.turn_on_bias]\nbias = [0.2, -0.3, 0.1]\n[gyro.g_sensitivity]\ng = [[0.0, 0.01, 0.0], [0.01, 0.0, 0.0], [0.0, 0.0, 0.01]]\n\
+         [gyro.scale_factor]\nk = [0.003, -0.003, 0.003]\n[gyro.misalignment]\nm = [[0.0, 0.002, 0.0], [0.0, 0.0, 0.002], [0.002, 0.0, 0.0]]\n\
+         [gyro.warmup_transient]\namplitude = [0.1, 0.1, -0.1]\ntau_s = 20.0\n\
+         [noise]\ngyro_white = 0.0\ngyro_bias_walk = 0.0\naccel_white = 0.0\nmagn_white = 0.0\ntemp_white = 0.0\n",
+    )
+    .unwrap();
+    let mut o = SimOptions::new("vehicle", 3);
+    o.duration = Some(120.0);
+    o.model = Some(model);
+    let data = RunData::simulate(&o).unwrap();
+    let cfg = Config::parse("[estimator]\nmode = \"startup_average\"\n", "t").unwrap();
+    let (est, _) = data.estimates(&cfg).unwrap();
+    let (orc, errs) = oracle(&data, &est, 20.0);
+    assert_eq!(errs.len() as f64, (100.0 * 204.8f64).round());
+    // only quantisation (0.04 deg/s LSB, no dither) is left
+    assert!(orc.max_err.iter().all(|e| *e < 0.3), "oracle {:?}", orc.max_err);
+    let m = score("sa", &data, &est, [0.0; 3], 20.0);
+    assert!(m.max_err[2] > 3.0 * orc.max_err[2], "uncorrected yaw {} vs oracle {}", m.max_err[2], orc.max_err[2]);
+}
+
+#[test]
+fn ablation_prints_the_three_paper_cases_and_writes_the_report() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("run");
+    let mut o = SimOptions::new("paper", 5);
+    o.duration = Some(40.0);
+    simulate(&o, &dir).unwrap();
+    let cfg = Config::load(&dir.join("config.toml")).unwrap();
+    let rep = t.path().join("rep");
+    let text = evaluate_dir(&cfg, &dir, &EvalOptions { score_from: 10.0, ablation: true, out: Some(rep.clone()) }).unwrap();
+    for case in ["1 startup_average", "2 startup_thermal", "3 paper", "oracle floor"] {
+        assert!(text.contains(case), "{text}");
+    }
+    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(rep.join("report.json")).unwrap()).unwrap();
+    assert!(j["cases"].as_array().unwrap().len() >= 3);
+    for svg in ["attitude_error.svg", "bias.svg"] {
+        let s = std::fs::read_to_string(rep.join(svg)).unwrap();
+        assert!(s.starts_with("<svg") && s.contains("polyline"), "{svg}");
+    }
+}

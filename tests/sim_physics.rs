@@ -1,0 +1,147 @@
+//! The simulator's truth is physically consistent.
+
+use gyrocomp::sim::motion::{c_nb, to_ned, wrap180, Truth, TruthGen, G};
+use gyrocomp::sim::scenario::{motion, Ranges};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+const RATE: f64 = 204.8;
+
+fn truth(scenario: &str, hard: bool, seed: u64, duration: f64) -> Vec<Truth> {
+    let r = Ranges::for_scenario(scenario);
+    let spec = motion(scenario, hard, duration, &mut ChaCha8Rng::seed_from_u64(seed), &r).unwrap();
+    TruthGen::new(&spec, RATE).collect()
+}
+
+fn mat_mul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut c = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            c[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    c
+}
+
+/// Rotation of a rotation vector (Rodrigues).
+fn exp_so3(w: [f64; 3]) -> [[f64; 3]; 3] {
+    let th = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+    let k = [[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]];
+    let (a, b) = if th < 1e-12 { (1.0, 0.5) } else { (th.sin() / th, (1.0 - th.cos()) / (th * th)) };
+    let k2 = mat_mul(&k, &k);
+    let mut r = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            r[i][j] = if i == j { 1.0 } else { 0.0 } + a * k[i][j] + b * k2[i][j];
+        }
+    }
+    r
+}
+
+fn euler(c: &[[f64; 3]; 3]) -> [f64; 3] {
+    let roll = c[2][1].atan2(c[2][2]).to_degrees();
+    let pitch = (-c[2][0]).asin().to_degrees();
+    let yaw = c[1][0].atan2(c[0][0]).to_degrees();
+    [roll, pitch, yaw]
+}
+
+#[test]
+fn body_rates_integrate_to_the_truth_attitude() {
+    // 420 s of vehicle --hard: gentle driving, then 70 s of manoeuvres.
+    let tr = truth("vehicle", true, 7, 420.0);
+    let dt = 1.0 / RATE;
+    let d = |x: &Truth| (x.roll.to_radians(), x.pitch.to_radians(), x.yaw.to_radians());
+    let (r, p, y) = d(&tr[0]);
+    let mut c = c_nb(r, p, y);
+    let mut worst = 0.0f64;
+    for k in 1..tr.len() {
+        // trapezoid of the body rate over the step
+        let w: Vec<f64> = (0..3).map(|i| 0.5 * (tr[k - 1].rate[i] + tr[k].rate[i]).to_radians() * dt).collect();
+        c = mat_mul(&c, &exp_so3([w[0], w[1], w[2]]));
+        let e = euler(&c);
+        let want = [tr[k].roll, tr[k].pitch, tr[k].yaw];
+        for i in 0..3 {
+            worst = worst.max(wrap180(e[i] - want[i]).abs());
+        }
+    }
+    assert!(worst < 0.05, "integrated body rates leave the truth attitude by {worst} deg");
+    // The integrated heading really turned (not a trivially consistent still run).
+    let turned: f64 = tr.iter().map(|x| x.rate[2].abs() * dt).sum();
+    assert!(turned > 360.0, "turned only {turned} deg");
+}
+
+#[test]
+fn specific_force_is_that_of_the_path() {
+    let tr = truth("vehicle", true, 3, 500.0);
+    let dt = 1.0 / RATE;
+    let mut worst = 0.0f64;
+    let (mut max_lat, mut max_long, mut max_h) = (0.0f64, 0.0f64, 0.0f64);
+    // a_n = C_nb f g + g_n, integrated (trapezoid) over 1 s windows, must give
+    // the change of the path's velocity.
+    let acc = |x: &Truth| {
+        let c = c_nb(x.roll.to_radians(), x.pitch.to_radians(), x.yaw.to_radians());
+        let f = to_ned(&c, &x.f);
+        [f[0] * G, f[1] * G, f[2] * G + G]
+    };
+    let win = RATE as usize;
+    let mut k0 = 0;
+    let mut dv = [0.0; 3];
+    for k in 1..tr.len() {
+        let (a0, a1) = (acc(&tr[k - 1]), acc(&tr[k]));
+        for i in 0..3 {
+            dv[i] += 0.5 * (a0[i] + a1[i]) * dt;
+        }
+        if k - k0 == win {
+            for i in 0..3 {
+                worst = worst.max((tr[k].vel[i] - tr[k0].vel[i] - dv[i]).abs());
+            }
+            k0 = k;
+            dv = [0.0; 3];
+        }
+        let x = &tr[k];
+        let a = a1;
+        // along / across the track
+        let (s, co) = x.yaw.to_radians().sin_cos();
+        max_long = max_long.max((a[0] * co + a[1] * s).abs() / G);
+        max_lat = max_lat.max((-a[0] * s + a[1] * co).abs() / G);
+        max_h = max_h.max((a[0] * a[0] + a[1] * a[1]).sqrt() / G);
+        assert!(x.speed >= 0.0 && x.speed < 40.0, "speed {} at {}", x.speed, x.t);
+    }
+    assert!(worst < 0.01, "integrated specific force vs change of velocity over 1 s: {worst} m/s");
+    assert!(max_long > 0.29 && max_lat > 0.39, "long {max_long} lat {max_lat}");
+    assert!(max_h > 0.6, "hard manoeuvres above 0.6 g expected, max {max_h}");
+}
+
+#[test]
+fn gentle_driving_is_real_motion() {
+    for seed in 1..4 {
+        let tr = truth("paper", false, seed, 350.0);
+        let win: Vec<&Truth> = tr.iter().filter(|x| x.t >= 10.0 && x.t < 70.0).collect();
+        let n = win.len() as f64;
+        let range = |f: &dyn Fn(&Truth) -> f64| {
+            let v: Vec<f64> = win.iter().map(|x| f(x)).collect();
+            v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min)
+        };
+        assert!(range(&|x| x.roll) > 1.0, "seed {seed}: roll hardly moves");
+        assert!(range(&|x| x.pitch) > 1.0, "seed {seed}: pitch hardly moves");
+        let speed = win.iter().map(|x| x.speed).sum::<f64>() / n;
+        assert!(speed > 5.0, "seed {seed}: mean speed {speed}");
+        // over the whole gentle phase it turns and never exceeds 0.2 g
+        let turned: f64 = tr.iter().map(|x| x.rate[2].abs() / RATE).sum();
+        assert!(turned > 90.0, "seed {seed}: turned {turned} deg");
+        let worst_h = tr.iter().map(|x| (x.acc[0].hypot(x.acc[1])) / G).fold(0.0, f64::max);
+        assert!(worst_h < 0.2, "seed {seed}: gentle phase reached {worst_h} g");
+    }
+}
+
+#[test]
+fn chamber_self_heats_at_rest() {
+    let tr = truth("chamber", false, 5, 1800.0);
+    let (a, b) = (&tr[0], tr.last().unwrap());
+    assert!(b.temp - a.temp > 10.0, "{} -> {}", a.temp, b.temp);
+    for x in &tr {
+        assert!(x.rate.iter().all(|r| r.abs() < 1e-12));
+        let m = (x.f[0].powi(2) + x.f[1].powi(2) + x.f[2].powi(2)).sqrt();
+        assert!((m - 1.0).abs() < 1e-12);
+    }
+}
