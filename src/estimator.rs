@@ -570,8 +570,13 @@ mod tests {
         }
     }
 
+    /// These tests pin the paper's behaviour: paper mode unless the text names a mode.
     fn cfg(text: &str) -> Config {
-        Config::parse(text, "test").unwrap()
+        let mut c = Config::parse(text, "test").unwrap();
+        if !text.contains("mode =") {
+            c.estimator.mode = Mode::Paper;
+        }
+        c
     }
 
     #[test]

@@ -71,7 +71,7 @@ fn run(cfg_text: &str, t_static: f64, seed: u64) -> (Outcome, Estimator) {
 
 fn cfg_with(learn: bool, p1: [f64; 3], extra: &str) -> String {
     format!(
-        "[input]\nrate_hz = {RATE}\n[estimator]\nwarmup_s = 10.0\nlearn_s = 60.0\n[thermal]\nt0 = 25.0\np1 = [{}, {}, {}]\nlearn = {learn}\nlearn_after_s = 120.0\n{extra}",
+        "[input]\nrate_hz = {RATE}\n[estimator]\nmode = \"paper\"\nwarmup_s = 10.0\nlearn_s = 60.0\n[thermal]\nt0 = 25.0\np1 = [{}, {}, {}]\nlearn = {learn}\nlearn_after_s = 120.0\n{extra}",
         p1[0], p1[1], p1[2]
     )
 }

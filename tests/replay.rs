@@ -16,11 +16,14 @@ fn replay_is_deterministic_and_learns_the_bias() {
     let d = tempfile::tempdir().unwrap();
     let input = d.path().join("in.log");
     std::fs::write(&input, gentle_log(204 * 40, [0.3, -0.2, 0.25], 1_700_000_000_000_000)).unwrap();
-    let o1 = replay(d.path(), &input, &[]);
+    let cfg = d.path().join("paper.toml");
+    std::fs::write(&cfg, "[estimator]\nmode = \"paper\"\n").unwrap();
+    let cfg_s = cfg.to_str().unwrap();
+    let o1 = replay(d.path(), &input, &["--config", cfg_s]);
     assert!(o1.status.success(), "{}", String::from_utf8_lossy(&o1.stderr));
     let a = std::fs::read(d.path().join("out.log")).unwrap();
     let csv_a = std::fs::read(d.path().join("est.csv")).unwrap();
-    let o2 = replay(d.path(), &input, &[]);
+    let o2 = replay(d.path(), &input, &["--config", cfg_s]);
     assert!(o2.status.success());
     assert_eq!(a, std::fs::read(d.path().join("out.log")).unwrap(), "output log differs between runs");
     assert_eq!(csv_a, std::fs::read(d.path().join("est.csv")).unwrap(), "csv differs between runs");

@@ -4,7 +4,7 @@
 use gyrocomp::adis::{builtin_profile, InputIds, RawSample};
 use gyrocomp::candump::write_line;
 
-/// A level unit turning slowly in yaw (and rocking a little in roll) with a
+/// A level unit turning slowly in yaw (0.3 deg/s) and rocking a little in roll with a
 /// constant gyro bias, `n` samples at the ADIS16448 rate, as candump text.
 pub fn gentle_log(n: u32, bias: [f64; 3], t0_us: u64) -> Vec<u8> {
     gentle_log_from(n, bias, t0_us, 0)
@@ -18,13 +18,14 @@ pub fn gentle_log_from(n: u32, bias: [f64; 3], t0_us: u64, cnt0: u16) -> Vec<u8>
     let mut out = Vec::new();
     for k in 0..n {
         let t = k as f64 * dt;
-        // roll = 2 deg sin(0.2 t); yaw rate 1 deg/s
+        // roll = 2 deg sin(0.2 t); yaw rate 0.3 deg/s
+        const YAW_RATE: f64 = 0.3;
         let roll = 2f64.to_radians() * (0.2 * t).sin();
         let droll = 2.0 * 0.2 * (0.2 * t).cos(); // deg/s
-        let yaw = (1.0 * t).to_radians();
+        let yaw = (YAW_RATE * t).to_radians();
         let (sr, cr) = roll.sin_cos();
         // level pitch: body rates p = droll, q = sin(roll) * yaw_rate, r = cos(roll) * yaw_rate
-        let gyro = [droll + bias[0], sr * 1.0 + bias[1], cr * 1.0 + bias[2]];
+        let gyro = [droll + bias[0], sr * YAW_RATE + bias[1], cr * YAW_RATE + bias[2]];
         let accel = [0.0, -sr, -cr];
         // field NED (0.2, 0, 0.4) gauss, rotated into the body (yaw then roll)
         let (sy, cy) = yaw.sin_cos();
