@@ -132,7 +132,7 @@ fn fault_log(cnt0: u16) -> Vec<u8> {
 fn live_equals_replay_and_faults_are_survived() {
     let d = tempfile::tempdir().unwrap();
     let cfg = d.path().join("live.toml");
-    std::fs::write(&cfg, "[can]\ninterface = \"vcan0\"\n[estimator]\nwarmup_s = 1.0\nlearn_s = 3.0\n[daemon]\nsilent_after_s = 0.5\n").unwrap();
+    std::fs::write(&cfg, "[can]\ninterface = \"vcan0\"\n[estimator]\nwarmup_s = 1.0\nlearn_s = 3.0\n[daemon]\nsilent_after_s = 0.5\nerror_frames = true\n").unwrap();
     // part 1: a clean moving log; part 2: faults; part 3: after the link bounce
     let clean = d.path().join("clean.log");
     std::fs::write(&clean, common::gentle_log(204 * 6, [0.3, -0.2, 0.25], 1_700_000_000_000_000)).unwrap();
@@ -161,6 +161,10 @@ candump -r 8388608 -L vcan0,110:7FC > live2.log &
 C=$!
 sleep 0.5
 canplayer -I faults.log vcan0=vcan0
+# three error frames (CAN_ERR_FLAG in the ID): counted, opted in by the config
+cansend vcan0 20000004#0004000000000000
+cansend vcan0 20000004#0010000000000000
+cansend vcan0 20000040#0000000000000000
 sleep 0.5
 kill $C
 # the interface goes down and comes back: the daemon reopens by itself
@@ -250,6 +254,8 @@ cat daemon.err
     assert!(daemon_err.contains("bus silent"), "{daemon_err}");
     assert!(daemon_err.contains("input resumed"), "{daemon_err}");
     assert!(console.contains("daemon exit 0"), "{console}");
+    assert!(daemon_err.contains("error_frames=3"), "{daemon_err}");
+    assert!(daemon_err.contains("CAN error frame"), "{daemon_err}");
 }
 
 #[test]

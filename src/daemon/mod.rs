@@ -253,6 +253,7 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
     let mut sink = BusSink::new(&tx, &shell);
     let mut backoff = Duration::from_millis(100);
     let mut open_log = RateLimited::new(Duration::from_secs(10));
+    let mut err_log = RateLimited::new(Duration::from_secs(10));
     let mut last_sample = Instant::now();
     let mut silent = false;
     let mut last_save = Instant::now();
@@ -324,8 +325,11 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
                     let mut n = 0;
                     while let Some(r) = next.take() {
                         match r {
-                            Ok(CanFrame::Error(_)) => {
-                                shell.error_frames.fetch_add(1, Ordering::Relaxed);
+                            Ok(CanFrame::Error(ef)) => {
+                                let total = shell.error_frames.fetch_add(1, Ordering::Relaxed) + 1;
+                                if let Some(sup) = err_log.due(Instant::now()) {
+                                    warn!(error = ?socketcan::CanError::from(ef), total, suppressed_since_last = sup, "CAN error frame");
+                                }
                             }
                             Ok(f) => {
                                 let n0 = sink.samples;
