@@ -2,33 +2,15 @@
 //! frames out), and replay throughput on an in-memory candump log, with
 //! socketcan's own dump reader beside ours for comparison.
 
+mod support;
+use support::raw_samples;
 use criterion::{black_box, criterion_group, criterion_main, BatchSize, Criterion, Throughput};
-use gyrocomp::adis::{builtin_profile, Assembler, InputIds, Push, RawFrame, RawSample, Sample};
+use gyrocomp::adis::{builtin_profile, Assembler, InputIds, Push, RawFrame, Sample};
 use gyrocomp::candump::write_line;
 use gyrocomp::config::Config;
 use gyrocomp::estimator::Estimator;
 use gyrocomp::pipeline::{NullSink, Pipeline};
 use gyrocomp::replay;
-
-fn raw_samples(n: u32) -> Vec<[[u8; 8]; 4]> {
-    let p = builtin_profile("adis16448").unwrap();
-    (0..n)
-        .map(|k| {
-            let t = k as f64 / 204.8;
-            // gentle motion with excursions through all three bands
-            let a = 1.0 + 0.25 * (0.05 * t).sin();
-            let mut r = RawSample::quantise(
-                &p,
-                [5.0 * (0.3 * t).sin() + 0.2, 3.0 * (0.2 * t).cos() - 0.1, 10.0 * (0.1 * t).sin()],
-                [0.05 * (0.3 * t).sin(), 0.03, -a],
-                [0.2, 0.05, 0.4],
-                30.0 + 0.01 * t,
-            );
-            r.cnt = k as u16;
-            r.encode()
-        })
-        .collect()
-}
 
 fn samples(n: u32) -> Vec<Sample> {
     let p = builtin_profile("adis16448").unwrap();

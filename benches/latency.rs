@@ -3,7 +3,8 @@
 //! the four output frames queued for the writer task (`daemon::BusSink`).
 //! 1 M samples; prints p50 / p99 / p99.9 / max. Run: `cargo bench --bench latency`.
 
-use gyrocomp::adis::{builtin_profile, InputIds, RawFrame, RawSample};
+mod support;
+use gyrocomp::adis::{InputIds, RawFrame};
 use gyrocomp::config::Config;
 use gyrocomp::daemon::{BusSink, ShellCounters};
 use gyrocomp::pipeline::Pipeline;
@@ -12,22 +13,7 @@ use std::time::Instant;
 
 fn main() {
     let n: usize = std::env::var("LATENCY_SAMPLES").ok().and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
-    let p = builtin_profile("adis16448").unwrap();
-    let frames: Vec<[[u8; 8]; 4]> = (0..n)
-        .map(|k| {
-            let t = k as f64 / p.rate_hz;
-            let a = 1.0 + 0.25 * (0.05 * t).sin();
-            let mut r = RawSample::quantise(
-                &p,
-                [5.0 * (0.3 * t).sin() + 0.2, 3.0 * (0.2 * t).cos() - 0.1, 10.0 * (0.1 * t).sin()],
-                [0.05 * (0.3 * t).sin(), 0.03, -a],
-                [0.2, 0.05, 0.4],
-                30.0 + 0.001 * t,
-            );
-            r.cnt = k as u16;
-            r.encode()
-        })
-        .collect();
+    let frames = support::raw_samples(n as u32);
     let cfg = Config::parse("[estimator]\nwarmup_s = 1.0\nlearn_s = 5.0\n[thermal]\np1 = [0.002, 0.0044, 0.0192]", "bench").unwrap();
     let mut pipe = Pipeline::new(&cfg);
     let (tx, mut rx) = tokio::sync::mpsc::channel::<CanFrame>(gyrocomp::daemon::TX_QUEUE);
