@@ -60,6 +60,11 @@ enum Cmd {
     },
     /// Simulate a scenario: DIR/imu.log (ADIS on CAN), truth.csv, sensor.toml, bias.csv, scenario.toml, config.toml.
     Simulate(gyrocomp::sim::cli::SimulateArgs),
+    /// Find what a gyro sensor model is missing: fit, localise and name effects against measured data and truth.
+    ///
+    /// Writes DIR/report.json, report.md, model.toml (the extended model) and
+    /// SVG plots. Significance rule and details: the `gyrocomp::gap` module documentation.
+    Gap(gyrocomp::gap::GapArgs),
 }
 
 fn load_config(p: &Option<PathBuf>) -> Result<Config, String> {
@@ -80,6 +85,7 @@ fn main() -> ExitCode {
         Cmd::Calibrate { config, input, order, write, plot } => cmd_calibrate(config, input, order, write, plot),
         Cmd::CheckConfig { file } => Config::load(&file).map(|c| print!("{}", c.to_toml())).map_err(|e| e.to_string()),
         Cmd::Simulate(a) => gyrocomp::sim::cli::run(&a),
+        Cmd::Gap(a) => gyrocomp::gap::cli(&a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,
