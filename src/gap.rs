@@ -390,6 +390,8 @@ struct Bin {
     temp: f64,
     temp2: f64,
     dtemp: f64,
+    /// weight of the bin in the fits: its sample count over the mean count
+    wt: f64,
     /// 1-s group and cross-validation fold
     sec: usize,
     fold: usize,
@@ -411,6 +413,8 @@ impl Bin {
 /// Everything the fits need: the bins and the reference temperatures.
 struct Data {
     bins: Vec<Bin>,
+    /// nominal sample rate, Hz
+    rate_hz: f64,
     t0_lin: f64,
     t0_quad: f64,
     nsec: usize,
@@ -504,8 +508,9 @@ impl Data {
             let fo = b.fold;
             for a in 0..3 {
                 let y = b.y[a];
-                yty[fo] += y * y;
-                yty_axis[a] += y * y;
+                let w = b.wt;
+                yty[fo] += w * y * y;
+                yty_axis[a] += w * y * y;
                 rows[fo] += 1.0;
                 let id = &idx[a];
                 for &k in id {
@@ -513,9 +518,10 @@ impl Data {
                 }
                 let m = &mut xtx[fo];
                 for (ii, &i) in id.iter().enumerate() {
-                    xty[fo][i] += x[i] * y;
+                    xty[fo][i] += w * x[i] * y;
+                    let wx = w * x[i];
                     for &j in &id[ii..] {
-                        m[(i, j)] += x[i] * x[j];
+                        m[(i, j)] += wx * x[j];
                     }
                 }
             }
@@ -566,7 +572,7 @@ impl Data {
                             r -= beta[k] * self.x(t, tau, bn, a);
                         }
                     }
-                    *s += r * r;
+                    *s += bn.wt * r * r;
                 }
             }
         }
@@ -584,6 +590,13 @@ impl Data {
         s
     }
 
+    /// Samples a second needs to count in the 1-s statistics (half the
+    /// nominal count: a partial second at either end would weigh as much
+    /// as a full one with several times its noise).
+    fn full_sec(&self) -> f64 {
+        0.5 * self.rate_hz
+    }
+
     /// Residuals of a fit, 1-s means per axis: `(t, [r; 3])`.
     fn resid_1s(&self, fit: &Fit) -> Vec<(f64, [f64; 3])> {
         let mut acc = vec![(0.0, [0.0; 3], 0.0); self.nsec];
@@ -595,7 +608,8 @@ impl Data {
                 e.1[a] += b.n * (b.y[a] - self.pred(fit, b, a));
             }
         }
-        acc.into_iter().filter(|e| e.2 > 0.0).map(|e| (e.0 / e.2, [e.1[0] / e.2, e.1[1] / e.2, e.1[2] / e.2])).collect()
+        let full = self.full_sec();
+        acc.into_iter().filter(|e| e.2 >= full).map(|e| (e.0 / e.2, [e.1[0] / e.2, e.1[1] / e.2, e.1[2] / e.2])).collect()
     }
 
     fn rms_1s(&self, fit: &Fit) -> [f64; 3] {
@@ -622,7 +636,8 @@ impl Data {
         }
         let mut s = [0.0; 3];
         let mut n = 0.0;
-        for (v, w) in acc.iter().filter(|e| e.1 > 0.0) {
+        let full = self.full_sec();
+        for (v, w) in acc.iter().filter(|e| e.1 >= full) {
             n += 1.0;
             for a in 0..3 {
                 s[a] += (v[a] / w).powi(2);
@@ -842,7 +857,9 @@ fn build_data(
         raw_resid.push(r);
     }
     let mut out = Vec::with_capacity(nbin);
+    let mean_n = pairs.len() as f64 / bins.iter().filter(|b| b.n > 0.0).count().max(1) as f64;
     for mut b in bins.into_iter().filter(|b| b.n > 0.0) {
+        b.wt = b.n / mean_n;
         let n = b.n;
         b.t /= n;
         b.temp /= n;
@@ -860,7 +877,9 @@ fn build_data(
     }
     let t0_lin = base.thermal_linear.as_ref().map(|c| c.t0).or(base.thermal_quadratic.as_ref().map(|c| c.t0)).unwrap_or(25.0);
     let t0_quad = base.thermal_quadratic.as_ref().map(|c| c.t0).unwrap_or(t0_lin);
-    Ok((Data { bins: out, t0_lin, t0_quad, nsec }, raw_resid))
+    let span = tt(&pairs[pairs.len() - 1]) - tstart;
+    let rate_hz = if span > 0.0 { (pairs.len() - 1) as f64 / span } else { 1.0 / dt };
+    Ok((Data { bins: out, rate_hz, t0_lin, t0_quad, nsec }, raw_resid))
 }
 
 /// Robust per-sample white-noise estimate from first differences (MAD), per axis.
@@ -1096,7 +1115,8 @@ pub fn analyse(
     if data.bins.len() < 20 {
         return Err(format!("too little data: {} bins of {FIT_BIN_S} s", data.bins.len()));
     }
-    let rate = profile.rate_hz;
+    // the measured rate (a CSV need not be at the profile's rate)
+    let rate = data.rate_hz;
     let sigma_s = ((base.noise.gyro_white * (rate / 2.0).sqrt()).powi(2) + profile.gyro_lsb.powi(2) / 12.0).sqrt();
     let per_bin = data.bins.iter().map(|b| b.n).sum::<f64>() / data.bins.len() as f64;
     let sigma_bin = sigma_s / per_bin.sqrt();
@@ -1129,6 +1149,9 @@ pub fn analyse(
         data.fit(&free, tau).ok_or("the base model's free coefficients cannot be fitted from this data (singular)")?
     };
     let initial_fit = cur.clone();
+    if std::env::var_os("GAP_DEBUG").is_some() {
+        eprintln!("initial beta {:?} terms {:?} bins {} first {:?}", cur.beta.as_slice(), cur.terms, data.bins.len(), &data.bins[..2]);
+    }
     let rms_initial = data.rms_1s(&cur);
     let mut findings = Vec::new();
     let mut not_separable: Vec<NotSeparable> = Vec::new();
