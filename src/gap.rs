@@ -36,8 +36,10 @@
 //!    - no other candidate with nearly the same evidence (ΔBIC within
 //!      [`BIC_MIN`]) has a regressor correlated with it beyond
 //!      [`AMBIGUOUS_CORR`] after the current model is projected out;
-//!      otherwise both are reported as *not separable with this data* and
-//!      neither is added.
+//!      nor a correlated one (|ρ| > 0.5) within [`BIC_TIE`] of it;
+//!      otherwise both are reported as *not separable with this data*,
+//!      neither is added, and nothing more is added on that axis (a
+//!      weaker explanation of the same residual would be a guess).
 //! 4. **Add** it with its fitted coefficient, re-fit, record the residual RMS
 //!    (of 1-s means, per axis) before and after.
 //!
@@ -66,6 +68,9 @@ pub const SIZE_MIN: f64 = 0.5;
 pub const COLLINEAR_R2: f64 = 0.995;
 /// Partial correlation between two close candidates above which they are not separable.
 pub const AMBIGUOUS_CORR: f64 = 0.95;
+/// ΔBIC difference below which two correlated (|ρ| > 0.5) candidates are a tie
+/// ("not worth more than a bare mention", Kass & Raftery).
+pub const BIC_TIE: f64 = 2.0;
 /// Length of the alternating cross-validation blocks, s.
 pub const CV_BLOCK_S: f64 = 20.0;
 /// At most this many effects are added.
@@ -648,10 +653,16 @@ impl Data {
     }
 }
 
-/// Log-spaced warm-up time constants searched, s.
+/// Log-spaced warm-up time constants searched, s: 5 s to [`TAU_MAX_S`]
+/// (a power-on transient settles within minutes; slower changes are
+/// thermal, and an exponential of a longer time constant is a ramp that
+/// the data cannot tell from a constant plus drift).
 fn tau_grid() -> Vec<f64> {
-    (0..25).map(|k| 5.0 * (1000.0f64 / 5.0).powf(k as f64 / 24.0)).collect()
+    (0..21).map(|k| 5.0 * (TAU_MAX_S / 5.0).powf(k as f64 / 20.0)).collect()
 }
+
+/// Longest warm-up time constant searched, s.
+pub const TAU_MAX_S: f64 = 300.0;
 
 /// Options of one workflow.
 #[derive(Clone, Debug)]
@@ -1157,6 +1168,8 @@ pub fn analyse(
     let mut not_separable: Vec<NotSeparable> = Vec::new();
     let mut ambiguous: Vec<Ambiguity> = Vec::new();
     let mut excluded: Vec<Term> = Vec::new();
+    // axes whose leading explanation was not separable: nothing more is added there
+    let mut blocked = [false; 3];
     let mut plot_finds = Vec::new();
     let mut first = true;
     // candidates: every term of every effect not in the model (fixed effects count as present)
@@ -1166,7 +1179,7 @@ pub fn analyse(
             .iter()
             .filter(|e| !fixed_eff.contains(e))
             .flat_map(|e| all_terms(*e))
-            .filter(|t| !cur.terms.contains(t) && !excluded.contains(t))
+            .filter(|t| !cur.terms.contains(t) && !excluded.contains(t) && (t.axis == 3 || !blocked[t.axis]))
             .collect();
         let mut evals: Vec<Cand> = cands.into_iter().filter_map(|t| evaluate(&data, &cur, t, sigma_bin, floor)).collect();
         if first {
@@ -1195,7 +1208,7 @@ pub fn analyse(
             }
             let tau = if best.term.effect == Effect::WarmupTransient { best.fit.tau } else { c.fit.tau };
             let rho = partial_corr(&data, &cur, best.term, c.term, tau);
-            if rho.abs() > AMBIGUOUS_CORR {
+            if rho.abs() > AMBIGUOUS_CORR || (best.dbic - c.dbic < BIC_TIE && rho.abs() > 0.5) {
                 amb = Some((c.term, c.dbic, rho));
                 break;
             }
@@ -1219,6 +1232,11 @@ pub fn analyse(
             });
             excluded.push(best.term);
             excluded.push(t2);
+            for t in [best.term, t2] {
+                if t.axis < 3 {
+                    blocked[t.axis] = true;
+                }
+            }
             continue;
         }
         let rms_before = data.rms_1s(&cur);
@@ -1277,6 +1295,18 @@ pub fn analyse(
         });
         plot_finds.push((best.term.label(), axis, best.term.effect.name().to_string(), loc_before, loc_after));
         cur = best.fit.clone();
+    }
+    // the coefficients of the final joint fit (later findings can correct
+    // earlier ones when their regressors are correlated)
+    for f in findings.iter_mut() {
+        let when = f.coefficient;
+        f.evidence["coefficient_when_found"] = serde_json::json!(when);
+        if let Some(t) = cur.terms.iter().find(|t| Some(t.label()) == f.evidence["term"].as_str().map(String::from)) {
+            f.coefficient = coef_of(&cur, t);
+        }
+        if f.effect == "warmup_transient" {
+            f.evidence["tau_s"] = serde_json::json!(cur.tau);
+        }
     }
     let rms_final = data.rms_1s(&cur);
     let model = extended_model(base, &cur, &findings);
