@@ -30,6 +30,10 @@
 //!      gyro) is at least [`SIZE_MIN`] × the white-noise level the model
 //!      predicts for 1-s means (noise density × sqrt(rate/2) combined with
 //!      LSB²/12, over sqrt(samples per second));
+//!    - a simpler candidate (fewer parameters: the warm-up's free time
+//!      constant counts) on the same axis whose simulated gyro differs from
+//!      the best one's by less than that size threshold is taken instead
+//!      (Occam: the data cannot tell them apart in practice);
 //!    - it is identifiable: its regressor is not nearly collinear with the
 //!      current model's (R² < [`COLLINEAR_R2`]) and the data could detect
 //!      it at a plausible size (plausible / standard error ≥ 3);
@@ -1198,12 +1202,33 @@ pub fn analyse(
         evals.sort_by(|a, b| b.dbic.total_cmp(&a.dbic));
         let passes = |c: &Cand| c.identifiable.is_ok() && c.dbic > BIC_MIN && c.cv_gain > 0.0 && c.size >= SIZE_MIN * floor;
         let Some(bi) = evals.iter().position(passes) else { break };
+        let mut bi = bi;
+        // Occam: a simpler candidate (fewer parameters) whose simulated gyro
+        // differs from the best one's by less than the size threshold explains
+        // the same thing; take the simpler one.
+        let params = |c: &Cand| if c.term.effect == Effect::WarmupTransient && cur.tau.is_nan() { 2 } else { 1 };
+        for (k, c) in evals.iter().enumerate() {
+            let b = &evals[bi];
+            if k == bi || !passes(c) || params(c) >= params(b) || c.term.axis != b.term.axis {
+                continue;
+            }
+            let d = data.diff_rms_1s(&c.fit, &b.fit).iter().cloned().fold(0.0, f64::max);
+            if d < SIZE_MIN * floor {
+                bi = k;
+            }
+        }
         let best = &evals[bi];
         // ambiguity: a close rival whose regressor is nearly the same given the current model
         let mut amb = None;
         for c in evals.iter().filter(|c| passes(c) && c.term != best.term && c.dbic >= best.dbic - BIC_MIN) {
             let share = axes_of(&c.term).iter().any(|a| axes_of(&best.term).contains(a));
             if !share {
+                continue;
+            }
+            // a rival with more parameters that Occam set aside (same prediction in practice)
+            if params(c) > params(best)
+                && data.diff_rms_1s(&c.fit, &best.fit).iter().cloned().fold(0.0, f64::max) < SIZE_MIN * floor
+            {
                 continue;
             }
             let tau = if best.term.effect == Effect::WarmupTransient { best.fit.tau } else { c.fit.tau };

@@ -293,7 +293,7 @@ fn inseparable_pair_is_reported_not_guessed() {
     // (fixed), hidden thermal_rate cannot be told from warmup_transient.
     let m = unit(&["thermal_rate"], "[gyro.thermal_rate]\nk = [0.0, 0.5, 0.0]\n");
     let base = format!("[gyro]\neffects = [\"turn_on_bias\", \"thermal_linear\"]\n[gyro.thermal_linear]\nt0 = 25.0\np1 = {P1:?}\n");
-    let r = run_base(&case("chamber", 800.0), m, &base);
+    let r = run_base(&case("static", 800.0), m, &base);
     assert!(r.report.findings.is_empty(), "{}", show(&r));
     assert!(!r.report.clean);
     let a = &r.report.ambiguous;
