@@ -30,10 +30,10 @@
 //!      gyro) is at least [`SIZE_MIN`] × the white-noise level the model
 //!      predicts for 1-s means (noise density × sqrt(rate/2) combined with
 //!      LSB²/12, over sqrt(samples per second));
-//!    - a simpler candidate (fewer parameters: the warm-up's free time
-//!      constant counts) on the same axis whose simulated gyro differs from
-//!      the best one's by less than that size threshold is taken instead
-//!      (Occam: the data cannot tell them apart in practice);
+//!    - Occam for nested candidates: `turn_on_bias` is the limit of
+//!      `warmup_transient` (time constant to infinity); when their simulated
+//!      gyros differ by less than that size threshold, the constant is taken
+//!      and the pair is not an ambiguity;
 //!    - it is identifiable: its regressor is not nearly collinear with the
 //!      current model's (R² < [`COLLINEAR_R2`]) and the data could detect
 //!      it at a plausible size (plausible / standard error ≥ 3);
@@ -1207,9 +1207,13 @@ pub fn analyse(
         // differs from the best one's by less than the size threshold explains
         // the same thing; take the simpler one.
         let params = |c: &Cand| if c.term.effect == Effect::WarmupTransient && cur.tau.is_nan() { 2 } else { 1 };
+        // the simpler model is a limit of the other (a warm-up of long time constant is a constant)
+        let nested = |simple: &Cand, other: &Cand| {
+            simple.term.effect == Effect::TurnOnBias && other.term.effect == Effect::WarmupTransient && simple.term.axis == other.term.axis
+        };
         for (k, c) in evals.iter().enumerate() {
             let b = &evals[bi];
-            if k == bi || !passes(c) || params(c) >= params(b) || c.term.axis != b.term.axis {
+            if k == bi || !passes(c) || params(c) >= params(b) || !nested(c, b) {
                 continue;
             }
             let d = data.diff_rms_1s(&c.fit, &b.fit).iter().cloned().fold(0.0, f64::max);
@@ -1226,7 +1230,7 @@ pub fn analyse(
                 continue;
             }
             // a rival with more parameters that Occam set aside (same prediction in practice)
-            if params(c) > params(best)
+            if nested(best, c)
                 && data.diff_rms_1s(&c.fit, &best.fit).iter().cloned().fold(0.0, f64::max) < SIZE_MIN * floor
             {
                 continue;
