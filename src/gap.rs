@@ -976,7 +976,7 @@ fn axes_of(t: &Term) -> Vec<usize> {
     }
 }
 
-fn evaluate(data: &Data, cur: &Fit, term: Term, sigma_bin: f64, floor_1s: f64) -> Option<Cand> {
+fn evaluate(data: &Data, cur: &Fit, term: Term, sigma_bin: f64) -> Option<Cand> {
     let mut terms = cur.terms.clone();
     terms.push(term);
     let fit = if term.effect == Effect::WarmupTransient && !cur.terms.iter().any(|t| t.effect == Effect::WarmupTransient) {
@@ -1050,8 +1050,9 @@ fn evaluate(data: &Data, cur: &Fit, term: Term, sigma_bin: f64, floor_1s: f64) -
     let norm2 = xtx[(k, k)];
     let resid2 = 1.0 / fit.inv[(k, k)];
     let r2 = if norm2 > 0.0 { (1.0 - resid2 / norm2).clamp(0.0, 1.0) } else { 1.0 };
-    let sig = sigma_bin.max((sse1 / (nrows - fit.terms.len() as f64).max(1.0)).sqrt());
-    let se = sig * fit.inv[(k, k)].sqrt();
+    // detection power against the white noise the model predicts (the
+    // residual's own level would count effects not yet modelled as noise)
+    let se = sigma_bin * fit.inv[(k, k)].sqrt();
     let identifiable = if r2 > COLLINEAR_R2 {
         Err(format!(
             "not separable with this data: its regressor is collinear with the current model's (R^2 = {r2:.4})"
@@ -1065,7 +1066,6 @@ fn evaluate(data: &Data, cur: &Fit, term: Term, sigma_bin: f64, floor_1s: f64) -
     } else {
         Ok(())
     };
-    let _ = floor_1s;
     Some(Cand { term, fit, dbic, cv_gain, size, r2, se, identifiable })
 }
 
@@ -1185,7 +1185,7 @@ pub fn analyse(
             .flat_map(|e| all_terms(*e))
             .filter(|t| !cur.terms.contains(t) && !excluded.contains(t) && (t.axis == 3 || !blocked[t.axis]))
             .collect();
-        let mut evals: Vec<Cand> = cands.into_iter().filter_map(|t| evaluate(&data, &cur, t, sigma_bin, floor)).collect();
+        let mut evals: Vec<Cand> = cands.into_iter().filter_map(|t| evaluate(&data, &cur, t, sigma_bin)).collect();
         if first {
             for c in &evals {
                 if let Err(r) = &c.identifiable {
@@ -1465,19 +1465,19 @@ pub fn render_md(r: &Report, o: &GapOptions) -> String {
         r.noise_floor_1s,
         fmt3(&r.noise_floor_1s_empirical)
     );
-    if r.findings.is_empty() {
+    if r.findings.is_empty() && r.ambiguous.is_empty() {
         s += "**No missing effect found**: no candidate passed the significance rule.\n\n";
     }
     for (k, f) in r.findings.iter().enumerate() {
         let ev = &f.evidence;
         let l = &ev["localisation"];
         s += &format!(
-            "## {}. `{}` on {} — coefficient {:.4e} {}\n\n",
+            "## {}. `{}` (axis {}) — coefficient {:.4e} {}\n\n",
             k + 1,
             ev["term"].as_str().unwrap_or(&f.effect),
             f.axis,
             f.coefficient,
-            f.unit
+            if f.unit == "1" { "(dimensionless)" } else { &f.unit }
         );
         s += &format!(
             "- where: the residual on {} correlated with {} at {:.3} (binned range {:.4} deg/s), after: {:.3} ({:.4} deg/s)\n",
@@ -1508,7 +1508,7 @@ pub fn render_md(r: &Report, o: &GapOptions) -> String {
         s += "\n";
     }
     if !r.not_separable.is_empty() {
-        s += "## Candidates this data cannot judge\n\n";
+        s += "## Candidates this data cannot judge (on the base model's residual)\n\n";
         for n in &r.not_separable {
             s += &format!("- {}: {}\n", n.term, n.reason);
         }
