@@ -24,8 +24,9 @@
 //!    with the current model and ranked by ΔBIC. The best is accepted only
 //!    when ALL of the following hold (the significance rule):
 //!    - ΔBIC = N ln(SSE0/SSE1) − k ln N > [`BIC_MIN`] (strong evidence);
-//!    - two-fold cross-validation on alternating 20-s blocks (fit on one set
-//!      of blocks, predict the other, both ways) lowers the held-out SSE;
+//!    - two-fold cross-validation on alternating 20-s blocks (shorter in a
+//!      short run, at least 8 blocks; fit on one set of blocks, predict the
+//!      other, both ways) lowers the held-out SSE;
 //!    - what it explains (RMS over 1-s means of the change of the simulated
 //!      gyro) is at least [`SIZE_MIN`] × the white-noise level the model
 //!      predicts for 1-s means (noise density × sqrt(rate/2) combined with
@@ -46,6 +47,19 @@
 //!      weaker explanation of the same residual would be a guess).
 //! 4. **Add** it with its fitted coefficient, re-fit, record the residual RMS
 //!    (of 1-s means, per axis) before and after.
+//!
+//! The loop stops when no candidate passes (at most [`MAX_FINDINGS`]); the
+//! report then compares the final residual RMS with the predicted
+//! white-noise level (`final_localisation[].ratio_to_floor`). `clean` is true
+//! when nothing was found and no pair was left ambiguous. `not_separable`
+//! lists the candidates the data cannot judge at all on the base model's
+//! residual (no excitation, e.g. `scale_factor` on a bench at rest, or
+//! collinear, e.g. `g_sensitivity` to the constant gravity column against a
+//! turn-on bias). A fitted negative `time_delay` (measured leads truth) is not
+//! accepted. Findings report the coefficients of the final joint fit (also in
+//! `model.toml`); `evidence.coefficient_when_found` keeps the value at the
+//! time of the finding. Residual RMS values are over 1-s means of the
+//! residual (seconds with under half the nominal samples are left out).
 //!
 //! Outputs in DIR: `report.json`, `model.toml` (the extended model with all
 //! coefficients, accepted by `gyrocomp simulate --model` and `gyrocomp gap
@@ -99,7 +113,10 @@ pub struct TruthIn {
 }
 
 /// Read measured data: a candump log (ADIS contract, `profile`) or the CSV.
-/// Times of a log are relative to its first sample.
+/// Times of a log are relative to its first sample (the log's first sample
+/// is the truth's first row); a CSV's times are used as they are, unless
+/// they start further from the truth's start than half its length (epoch
+/// seconds, say): then they too are taken relative to their first row.
 pub fn read_measured(path: &Path, profile: &Profile) -> Result<Vec<MeasRow>, String> {
     let bytes = std::fs::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
     let first = bytes.split(|b| *b == b'\n').map(|l| l.trim_ascii()).find(|l| !l.is_empty());
@@ -762,15 +779,15 @@ fn build_data(
 ) -> Result<(Data, Vec<[f64; 3]>), String> {
     let t0 = truth[0].t;
     let dt = (truth[truth.len() - 1].t - t0) / (truth.len() - 1) as f64;
-    if !(dt > 0.0) {
+    if dt.is_nan() || dt <= 0.0 {
         return Err("truth: time does not advance".into());
     }
     // rate derivative as the simulator forms it (backward difference)
     let mut wd = vec![[0.0; 3]; truth.len()];
-    for k in 1..truth.len() {
+    for (k, w) in wd.iter_mut().enumerate().skip(1) {
         let h = truth[k].t - truth[k - 1].t;
-        for a in 0..3 {
-            wd[k][a] = (truth[k].rate[a] - truth[k - 1].rate[a]) / h;
+        for (a, x) in w.iter_mut().enumerate() {
+            *x = (truth[k].rate[a] - truth[k - 1].rate[a]) / h;
         }
     }
     // match: measured time (relative to its start for logs; CSV as given) on the truth grid
@@ -871,6 +888,8 @@ fn build_data(
         }
         raw_resid.push(r);
     }
+    // cross-validation blocks: 20 s, shorter for short runs (at least 8 blocks)
+    let block = CV_BLOCK_S.min((tt(&pairs[pairs.len() - 1]) - tstart) / 8.0).max(FIT_BIN_S);
     let mut out = Vec::with_capacity(nbin);
     let mean_n = pairs.len() as f64 / bins.iter().filter(|b| b.n > 0.0).count().max(1) as f64;
     for mut b in bins.into_iter().filter(|b| b.n > 0.0) {
@@ -887,7 +906,7 @@ fn build_data(
             b.f[a] /= n;
         }
         b.sec = ((b.t - tstart).floor().max(0.0) as usize).min(nsec - 1);
-        b.fold = (((b.t - tstart) / CV_BLOCK_S).floor() as usize) % 2;
+        b.fold = (((b.t - tstart) / block).floor() as usize) % 2;
         out.push(b);
     }
     let t0_lin = base.thermal_linear.as_ref().map(|c| c.t0).or(base.thermal_quadratic.as_ref().map(|c| c.t0)).unwrap_or(25.0);
@@ -985,7 +1004,7 @@ fn evaluate(data: &Data, cur: &Fit, term: Term, sigma_bin: f64) -> Option<Cand> 
         let mut best: Option<Fit> = None;
         for &tau in &grid {
             if let Some(f) = data.fit(&terms, tau) {
-                if best.as_ref().map_or(true, |b| f.sse < b.sse) {
+                if best.as_ref().is_none_or(|b| f.sse < b.sse) {
                     best = Some(f);
                 }
             }
@@ -1053,7 +1072,12 @@ fn evaluate(data: &Data, cur: &Fit, term: Term, sigma_bin: f64) -> Option<Cand> 
     // detection power against the white noise the model predicts (the
     // residual's own level would count effects not yet modelled as noise)
     let se = sigma_bin * fit.inv[(k, k)].sqrt();
-    let identifiable = if r2 > COLLINEAR_R2 {
+    let identifiable = if term.effect == Effect::TimeDelay && fit.beta[k] < 0.0 {
+        Err(format!(
+            "the measured rate leads the truth ({:.2e} s): not a time_delay (the vocabulary has no lead)",
+            fit.beta[k]
+        ))
+    } else if r2 > COLLINEAR_R2 {
         Err(format!(
             "not separable with this data: its regressor is collinear with the current model's (R^2 = {r2:.4})"
         ))
@@ -1153,7 +1177,7 @@ pub fn analyse(
         let mut best: Option<Fit> = None;
         for tau in tau_grid() {
             if let Some(f) = data.fit(&free, tau) {
-                if best.as_ref().map_or(true, |b| f.sse < b.sse) {
+                if best.as_ref().is_none_or(|b| f.sse < b.sse) {
                     best = Some(f);
                 }
             }
@@ -1564,9 +1588,12 @@ fn plot_finding(path: &Path, f: &(String, usize, String, Localisation, Localisat
     let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|x| e(&x))?;
     let all: Vec<(f64, f64)> = before.bins.iter().chain(&after.bins).map(|b| (b.0, b.1)).collect();
-    let x0 = all.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
+    let mut x0 = all.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
     let mut x1 = all.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
-    if !(x1 > x0) {
+    if !x0.is_finite() {
+        x0 = 0.0;
+    }
+    if !x1.is_finite() || x1 <= x0 {
         x1 = x0 + 1.0;
     }
     let m = all.iter().map(|p| p.1.abs()).fold(1e-4, f64::max) * 1.1;
