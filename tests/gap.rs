@@ -99,6 +99,14 @@ fn found<'a>(r: &'a GapResult, effect: &str, axis: &str, truth: f64) -> &'a Find
     let f: Vec<&Finding> = r.report.findings.iter().filter(|f| f.effect == effect && f.axis == axis).collect();
     assert_eq!(f.len(), 1, "want one {effect} on {axis}:\n{}", show(r));
     let f = f[0];
+    let a = axis_index(axis);
+    eprintln!(
+        "found {effect} {axis}: {:.5e} (true {truth:.5e}, {:+.1} %), RMS {axis} {:.5} -> {:.5} deg/s",
+        f.coefficient,
+        100.0 * (f.coefficient - truth) / truth,
+        f.rms_before[a],
+        f.rms_after[a]
+    );
     assert!(
         ((f.coefficient - truth) / truth).abs() <= 0.10,
         "{effect} {axis}: coefficient {} vs true {truth}\n{}",
