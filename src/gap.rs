@@ -753,7 +753,10 @@ pub struct Report {
     /// White-noise level of 1-s means: predicted by the model and estimated from the data.
     pub noise_floor_1s: f64,
     pub noise_floor_1s_empirical: [f64; 3],
-    /// Localisation of the final residual per axis (the strongest variables).
+    /// Localisation of the base model's residual per axis (the strongest
+    /// variables by |correlation|, with the range of their decile means).
+    pub initial_localisation: Vec<serde_json::Value>,
+    /// The same for the final residual.
     pub final_localisation: Vec<serde_json::Value>,
     pub samples: usize,
     pub duration_s: f64,
@@ -1363,13 +1366,17 @@ pub fn analyse(
     }
     let rms_final = data.rms_1s(&cur);
     let model = extended_model(base, &cur, &findings);
-    let final_localisation = (0..3)
-        .map(|a| {
-            let l = localise_axis(&data, &cur, a, 3);
-            serde_json::json!({"axis": AX[a], "rms_1s": rms_final[a], "ratio_to_floor": rms_final[a] / floor,
-                "strongest": l.iter().map(|l| serde_json::json!({"variable": l.variable, "correlation": l.correlation, "binned_range": l.binned_range})).collect::<Vec<_>>()})
-        })
-        .collect();
+    let locs = |fit: &Fit, rms: &[f64; 3]| -> Vec<serde_json::Value> {
+        (0..3)
+            .map(|a| {
+                let l = localise_axis(&data, fit, a, 3);
+                serde_json::json!({"axis": AX[a], "rms_1s": rms[a], "ratio_to_floor": rms[a] / floor,
+                    "strongest": l.iter().map(|l| serde_json::json!({"variable": l.variable, "correlation": l.correlation, "binned_range": l.binned_range})).collect::<Vec<_>>()})
+            })
+            .collect()
+    };
+    let final_localisation = locs(&cur, &rms_final);
+    let initial_localisation = locs(&initial_fit, &rms_initial);
     let clean = findings.is_empty() && ambiguous.is_empty();
     let report = Report {
         findings,
@@ -1380,6 +1387,7 @@ pub fn analyse(
         rms_final,
         noise_floor_1s: floor_1s,
         noise_floor_1s_empirical: emp_1s,
+        initial_localisation,
         final_localisation,
         samples: raw.len(),
         duration_s: data.bins.last().map_or(0.0, |b| b.t) - data.bins[0].t,
@@ -1489,6 +1497,35 @@ pub fn render_md(r: &Report, o: &GapOptions) -> String {
         r.noise_floor_1s,
         fmt3(&r.noise_floor_1s_empirical)
     );
+    let where_ = |title: &str, v: &[serde_json::Value]| -> String {
+        let mut s = format!("### {title}\n\n| axis | RMS 1-s, deg/s | / noise | strongest variables (correlation, decile-mean range deg/s) |\n|---|---|---|---|\n");
+        for l in v {
+            let st: Vec<String> = l["strongest"]
+                .as_array()
+                .map(|a| {
+                    a.iter()
+                        .map(|x| {
+                            format!(
+                                "{} ({:+.2}, {:.4})",
+                                x["variable"].as_str().unwrap_or(""),
+                                x["correlation"].as_f64().unwrap_or(0.0),
+                                x["binned_range"].as_f64().unwrap_or(0.0)
+                            )
+                        })
+                        .collect()
+                })
+                .unwrap_or_default();
+            s += &format!(
+                "| {} | {:.5} | {:.2} | {} |\n",
+                l["axis"].as_str().unwrap_or(""),
+                l["rms_1s"].as_f64().unwrap_or(0.0),
+                l["ratio_to_floor"].as_f64().unwrap_or(0.0),
+                st.join("; ")
+            );
+        }
+        s + "\n"
+    };
+    s += &where_("Where the base model fails", &r.initial_localisation);
     if r.findings.is_empty() && r.ambiguous.is_empty() {
         s += "**No missing effect found**: no candidate passed the significance rule.\n\n";
     }
@@ -1538,6 +1575,7 @@ pub fn render_md(r: &Report, o: &GapOptions) -> String {
         }
         s += "\n";
     }
+    s += &where_("What is left", &r.final_localisation);
     s += &format!(
         "Final residual RMS of 1-s means [{}] deg/s ({}).\n",
         fmt3(&r.rms_final),
