@@ -319,3 +319,15 @@ fn inseparable_pair_is_reported_not_guessed() {
     assert_eq!(a[0].axis, "y");
     assert!(a[0].reason.contains("not separable"));
 }
+
+#[test]
+fn effect_listed_without_coefficients_is_fitted_not_found() {
+    let m = unit(&["scale_factor"], "[gyro.scale_factor]\nk = [0.0, 0.0, 0.005]\n");
+    let base = "[gyro]\neffects = [\"turn_on_bias\", \"thermal_linear\", \"scale_factor\"]\n";
+    let r = run_base(&case("vehicle", 800.0), m, base);
+    assert!(r.report.clean, "{}", show(&r));
+    let k = r.model.gyro.scale_factor.as_ref().unwrap().k;
+    assert!((k[2] - 0.005).abs() <= 0.0005, "{k:?}");
+    assert!(k[0].abs() < 0.001 && k[1].abs() < 0.001, "{k:?}");
+    assert_eq!(r.report.free_base_terms.len(), 9);
+}
