@@ -13,6 +13,7 @@ pub mod daemon;
 pub mod ekf;
 pub mod estimator;
 pub mod evaluate;
+pub mod gap;
 pub mod output;
 pub mod pipeline;
 pub mod replay;

@@ -62,6 +62,11 @@ enum Cmd {
     Simulate(gyrocomp::sim::cli::SimulateArgs),
     /// Replay a simulated run (or many seeds) and score it against the truth.
     Evaluate(gyrocomp::evaluate::EvaluateArgs),
+    /// Find what a gyro sensor model is missing: fit, localise and name effects against measured data and truth.
+    ///
+    /// Writes DIR/report.json, report.md, model.toml (the extended model) and
+    /// SVG plots. Significance rule and details: the `gyrocomp::gap` module documentation.
+    Gap(gyrocomp::gap::GapArgs),
 }
 
 fn load_config(p: &Option<PathBuf>) -> Result<Config, String> {
@@ -83,6 +88,7 @@ fn main() -> ExitCode {
         Cmd::CheckConfig { file } => Config::load(&file).map(|c| print!("{}", c.to_toml())).map_err(|e| e.to_string()),
         Cmd::Simulate(a) => gyrocomp::sim::cli::run(&a),
         Cmd::Evaluate(a) => gyrocomp::evaluate::run(&a),
+        Cmd::Gap(a) => gyrocomp::gap::cli(&a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

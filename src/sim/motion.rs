@@ -113,12 +113,23 @@ pub struct Thermal {
     pub tau: f64,
     /// Extra linear drift, deg C/s (ambient change).
     pub drift: f64,
+    /// Chamber temperature cycle: amplitude, deg C, of `sin(2 pi t / cycle_period)`
+    /// added to the temperature (0 = none; no built-in scenario sets it, the
+    /// model-gap tests use it to separate `thermal_rate` from `thermal_linear`).
+    pub cycle_amp: f64,
+    /// Period of the temperature cycle, s (used only when `cycle_amp != 0`).
+    pub cycle_period: f64,
 }
 
 impl Thermal {
     pub fn eval(&self, t: f64) -> (f64, f64) {
         let e = (-t / self.tau).exp();
-        (self.ambient + self.rise * (1.0 - e) + self.drift * t, self.rise * e / self.tau + self.drift)
+        let (temp, rate) = (self.ambient + self.rise * (1.0 - e) + self.drift * t, self.rise * e / self.tau + self.drift);
+        if self.cycle_amp != 0.0 {
+            let w = 2.0 * std::f64::consts::PI / self.cycle_period;
+            return (temp + self.cycle_amp * (w * t).sin(), rate + self.cycle_amp * w * (w * t).cos());
+        }
+        (temp, rate)
     }
 }
 

@@ -234,7 +234,7 @@ fn sines(rng: &mut ChaCha8Rng, amps: [f64; 2], periods: [f64; 2], n: usize) -> V
 }
 
 fn thermal(rng: &mut ChaCha8Rng, r: &Ranges) -> Thermal {
-    Thermal { ambient: uni(rng, r.ambient), rise: uni(rng, r.self_heating), tau: uni(rng, r.heating_tau_s), drift: 0.0 }
+    Thermal { ambient: uni(rng, r.ambient), rise: uni(rng, r.self_heating), tau: uni(rng, r.heating_tau_s), drift: 0.0, cycle_amp: 0.0, cycle_period: 1.0 }
 }
 
 fn at_rest(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64) -> MotionSpec {
