@@ -688,4 +688,63 @@ mod tests {
         // integrated over one period, not 4.9 s
         assert!(est.roll.abs() < 1.0, "roll {}", est.roll);
     }
+
+    /// Level at rest with a bias, then (from `t_acc` for `dur` s) a sustained
+    /// forward acceleration `acc` g that |a| hardly shows, no rotation.
+    fn accel_run(mode: &str, acc: f64, t_acc: f64, dur: f64, total: f64) -> Vec<Estimate> {
+        // A tight tilt noise so that the gate, not a low gain, is what is tested
+        // (the default tilt_sigma_deg = 2 lets a slow 5 deg disturbance creep in).
+        let c = cfg(&format!("[estimator]\nmode = \"{mode}\"\nwarmup_s = 2.0\nlearn_s = 20.0\n[robust]\ntilt_sigma_deg = 0.3"));
+        let mut e = Estimator::new(&c);
+        let mut out = Vec::new();
+        for k in 0..(204.8 * total) as u32 {
+            let t = k as f64 / 204.8;
+            let mut s = rest(k as u16, [0.1, -0.1, 0.2], 0.0, 25.0);
+            if t >= t_acc && t < t_acc + dur {
+                s.accel = [acc, 0.0, -1.0];
+            }
+            out.push(e.step(&s));
+        }
+        out
+    }
+
+    #[test]
+    fn robust_refuses_a_sustained_acceleration_the_paper_fuses() {
+        // 0.1 g forward for 20 s: |a| = 1.005 g, inside the inner band; the
+        // accelerometer says pitch 5.7 deg, the gyro says nothing moved.
+        let worst = |v: &[Estimate]| v.iter().skip((204.8 * 60.0) as usize).map(|e| e.pitch.abs()).fold(0.0, f64::max);
+        let paper = accel_run("paper", 0.1, 90.0, 20.0, 130.0);
+        let robust = accel_run("robust", 0.1, 90.0, 20.0, 130.0);
+        assert!(worst(&paper) > 3.0, "paper pitch {}", worst(&paper));
+        assert!(worst(&robust) < 0.5, "robust pitch {}", worst(&robust));
+        // and the bias it holds is not dragged
+        let b = robust.last().unwrap().bias;
+        assert!((b[1] + 0.1).abs() < 0.01, "{b:?}");
+    }
+
+    #[test]
+    fn robust_gate_cannot_lock_out_forever() {
+        // After learning, the accelerometer reports a 6 deg tilt the gyro
+        // never saw (e.g. the unit was re-mounted while off the bus): the gate
+        // refuses it at first, then the lock-out re-levels on it.
+        let c = cfg("[estimator]\nmode = \"robust\"\nwarmup_s = 2.0\nlearn_s = 20.0\n[robust]\nlockout_s = 20.0\ntilt_sigma_deg = 0.3");
+        let mut e = Estimator::new(&c);
+        let th = 6f64.to_radians();
+        let mut est = Estimate::default();
+        let mut gated = false;
+        for k in 0..(204.8 * 150.0) as u32 {
+            let t = k as f64 / 204.8;
+            let mut s = rest(k as u16, [0.1, -0.1, 0.2], 0.0, 25.0);
+            if t >= 60.0 {
+                s.accel = [th.sin(), 0.0, -th.cos()];
+            }
+            est = e.step(&s);
+            if t > 61.0 && t < 70.0 {
+                gated |= est.flags & flags::GATED != 0;
+                assert!(est.pitch < 2.0, "took the jump at once: {} at {t}", est.pitch);
+            }
+        }
+        assert!(gated);
+        assert!((est.pitch - 6.0).abs() < 0.3, "pitch {}", est.pitch);
+    }
 }
