@@ -1,1 +1,130 @@
-fn main(){}
+//! `cargo bench`: ns per estimator step, per pipeline sample (frames in,
+//! frames out), and replay throughput on an in-memory candump log, with
+//! socketcan's own dump reader beside ours for comparison.
+
+mod support;
+use support::raw_samples;
+use criterion::{black_box, criterion_group, criterion_main, BatchSize, Criterion, Throughput};
+use gyrocomp::adis::{builtin_profile, Assembler, InputIds, Push, RawFrame, Sample};
+use gyrocomp::candump::write_line;
+use gyrocomp::config::Config;
+use gyrocomp::estimator::Estimator;
+use gyrocomp::pipeline::{NullSink, Pipeline};
+use gyrocomp::replay;
+
+fn samples(n: u32) -> Vec<Sample> {
+    let p = builtin_profile("adis16448").unwrap();
+    let mut a = Assembler::new(p, InputIds::DEFAULT);
+    let ids = InputIds::DEFAULT.all();
+    let mut out = Vec::new();
+    for f in raw_samples(n) {
+        for i in 0..4 {
+            if let Push::Sample(s) = a.push(0, RawFrame::classic(ids[i], &f[i])) {
+                out.push(s);
+            }
+        }
+    }
+    out
+}
+
+fn log_bytes(n: u32) -> Vec<u8> {
+    let ids = InputIds::DEFAULT.all();
+    let mut out = Vec::new();
+    for (k, f) in raw_samples(n).iter().enumerate() {
+        for i in 0..4 {
+            write_line(&mut out, 1_700_000_000_000_000 + k as u64 * 4883 + i as u64 * 50, b"vcan0", ids[i], &f[i]);
+        }
+    }
+    out
+}
+
+fn cfg() -> Config {
+    Config::parse("[estimator]\nwarmup_s = 1.0\nlearn_s = 5.0\n[thermal]\np1 = [0.002, 0.0044, 0.0192]", "bench").unwrap()
+}
+
+fn bench(c: &mut Criterion) {
+    let ss = samples(100_000);
+    let cfg = cfg();
+
+    let mut g = c.benchmark_group("estimator");
+    g.throughput(Throughput::Elements(1));
+    let mut est = Estimator::new(&cfg);
+    // steady state: past warm-up and learning
+    for s in &ss[..20_000] {
+        est.step(s);
+    }
+    let mut i = 20_000;
+    g.bench_function("step", |b| {
+        b.iter(|| {
+            let e = est.step(black_box(&ss[i]));
+            i += 1;
+            if i == ss.len() {
+                i = 20_000;
+            }
+            e
+        })
+    });
+    g.finish();
+
+    let frames = raw_samples(100_000);
+    let ids = InputIds::DEFAULT.all();
+    let mut g = c.benchmark_group("pipeline");
+    g.throughput(Throughput::Elements(1));
+    let mut pipe = Pipeline::new(&cfg);
+    let mut k = 0usize;
+    g.bench_function("sample_4_frames_in_4_out", |b| {
+        b.iter(|| {
+            let f = &frames[k % frames.len()];
+            for j in 0..4 {
+                pipe.push(k as u64, RawFrame::classic(ids[j], black_box(&f[j])), &mut NullSink);
+            }
+            k += 1;
+        })
+    });
+    g.finish();
+
+    let n = 200_000u32;
+    let log = log_bytes(n);
+    let mut g = c.benchmark_group("replay");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(n as u64));
+    g.bench_function("candump_in_candump_out_200k_samples", |b| {
+        b.iter_batched(
+            || Vec::with_capacity(log.len() + 4096),
+            |out: Vec<u8>| {
+                let mut w = gyrocomp::candump::LogWriter::new(out, "vcan0");
+                let mut pipe = Pipeline::new(&cfg);
+                let mut sink = replay::ReplaySink::<Vec<u8>, Vec<u8>> { log: Some(&mut w), csv: None, keep: None, err: None };
+                let s = replay::run(&mut pipe, &log[..], &mut sink).unwrap();
+                assert_eq!(s.input.samples, n as u64);
+                w.finish().unwrap()
+            },
+            BatchSize::PerIteration,
+        )
+    });
+    g.throughput(Throughput::Elements(4 * n as u64));
+    g.bench_function("parse_only_ours_800k_lines", |b| {
+        b.iter(|| {
+            let mut rd = gyrocomp::candump::LineReader::new(&log[..]);
+            let mut acc = 0u64;
+            while let Some(Ok(l)) = rd.next_line().unwrap() {
+                acc += gyrocomp::candump::parse_line(l).unwrap().t_us;
+            }
+            acc
+        })
+    });
+    g.bench_function("parse_only_socketcan_dump_800k_lines", |b| {
+        b.iter(|| {
+            let rd = socketcan::dump::Reader::from_reader(&log[..]);
+            let mut acc = 0u64;
+            for r in rd {
+                acc += r.unwrap().t_us;
+            }
+            acc
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -289,6 +289,12 @@ impl InputCounters {
     pub fn dropped(&self) -> u64 {
         Drop::ALL.iter().map(|d| self.get(*d)).sum()
     }
+    /// Drops that are faults of the IMU stream: all but unknown IDs (on a
+    /// shared vehicle bus other IDs are normal traffic, and the daemon's
+    /// kernel filter never lets them in).
+    pub fn errors(&self) -> u64 {
+        self.dropped() - self.unknown_id
+    }
 }
 
 /// What one pushed frame produced.
@@ -390,13 +396,12 @@ impl Assembler {
         }
         self.stale_run = 0;
         if self.have != 0 && cnt != self.cur_cnt {
-            // A newer sample started before this one completed.
-            if cnt.wrapping_sub(self.cur_cnt) as i16 > 0 {
-                self.have = 0;
-                self.counters.bump(Drop::Partial);
-            } else {
-                return self.drop(Drop::OutOfOrder);
-            }
+            // Another sample (newer than the last accepted one) started before
+            // this one completed: abandon this one. The newcomer wins even when
+            // its counter is lower, so one frame with a corrupted DATA_CNT
+            // costs one sample, not every sample up to the corrupted value.
+            self.have = 0;
+            self.counters.bump(Drop::Partial);
         }
         let bit = 1u8 << (part as u8);
         if self.have & bit != 0 {

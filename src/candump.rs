@@ -88,7 +88,7 @@ pub fn parse_line(line: &[u8]) -> Result<LogFrame<'_>, LineError> {
     if line.first() != Some(&b'(') {
         return Err(LineError::Timestamp);
     }
-    let close = line.iter().position(|&c| c == b')').ok_or(LineError::Timestamp)?;
+    let close = memchr::memchr(b')', line).ok_or(LineError::Timestamp)?;
     let ts = &line[1..close];
     let dot = ts.iter().position(|&c| c == b'.').ok_or(LineError::Timestamp)?;
     let (secs, micros) = (&ts[..dot], &ts[dot + 1..]);
@@ -116,20 +116,20 @@ pub fn parse_line(line: &[u8]) -> Result<LogFrame<'_>, LineError> {
         return Err(LineError::Interface);
     }
     let rest = &rest[1..];
-    let sp = rest.iter().position(|&c| c == b' ').ok_or(LineError::Interface)?;
+    let sp = memchr::memchr(b' ', rest).ok_or(LineError::Interface)?;
     let iface = &rest[..sp];
     if iface.is_empty() {
         return Err(LineError::Interface);
     }
     let mut frame = &rest[sp + 1..];
     // An optional direction field (candump -x) after one more space.
-    if let Some(sp2) = frame.iter().position(|&c| c == b' ') {
+    if let Some(sp2) = memchr::memchr(b' ', frame) {
         match &frame[sp2 + 1..] {
             b"R" | b"T" => frame = &frame[..sp2],
             _ => return Err(LineError::Trailing),
         }
     }
-    let hash = frame.iter().position(|&c| c == b'#').ok_or(LineError::Id)?;
+    let hash = memchr::memchr(b'#', frame).ok_or(LineError::Id)?;
     let id_s = &frame[..hash];
     let extended = match id_s.len() {
         3 => false,
@@ -219,7 +219,7 @@ impl<R: Read> LineReader<R> {
     pub fn next_line(&mut self) -> io::Result<Option<Result<&[u8], LineError>>> {
         loop {
             let window = &self.buf[self.start..self.end];
-            if let Some(nl) = window.iter().position(|&c| c == b'\n') {
+            if let Some(nl) = memchr::memchr(b'\n', window) {
                 let s = self.start;
                 self.start += nl + 1;
                 self.line_no += 1;
@@ -235,7 +235,7 @@ impl<R: Read> LineReader<R> {
                     self.start = self.end;
                     self.fill()?;
                     let w = &self.buf[self.start..self.end];
-                    if let Some(nl) = w.iter().position(|&c| c == b'\n') {
+                    if let Some(nl) = memchr::memchr(b'\n', w) {
                         self.start += nl + 1;
                         break;
                     }
@@ -265,37 +265,55 @@ const HEX: &[u8; 16] = b"0123456789ABCDEF";
 /// Append one candump -l line for a classic standard-ID frame.
 #[inline]
 pub fn write_line(out: &mut Vec<u8>, t_us: u64, iface: &[u8], id: u32, data: &[u8]) {
-    out.push(b'(');
-    let secs = t_us / 1_000_000;
-    let micros = (t_us % 1_000_000) as u32;
-    let mut tmp = [0u8; 20];
+    // Assemble on the stack, then one copy: "(" secs "." micros ") " iface " " ID "#" hex "\n"
+    let mut b = [0u8; 64];
     let mut n = 0;
+    b[n] = b'(';
+    n += 1;
+    let secs = t_us / 1_000_000;
+    let mut digits = [0u8; 20];
+    let mut d = 0;
     let mut v = secs;
     loop {
-        tmp[n] = b'0' + (v % 10) as u8;
-        n += 1;
+        digits[d] = b'0' + (v % 10) as u8;
+        d += 1;
         v /= 10;
         if v == 0 {
             break;
         }
     }
-    out.extend(tmp[..n].iter().rev());
-    out.push(b'.');
-    let mut m = [b'0'; 6];
-    let mut v = micros;
+    for k in (0..d).rev() {
+        b[n] = digits[k];
+        n += 1;
+    }
+    b[n] = b'.';
+    n += 1;
+    let mut v = (t_us % 1_000_000) as u32;
     for k in (0..6).rev() {
-        m[k] = b'0' + (v % 10) as u8;
+        b[n + k] = b'0' + (v % 10) as u8;
         v /= 10;
     }
-    out.extend_from_slice(&m);
-    out.extend_from_slice(b") ");
+    n += 6;
+    b[n] = b')';
+    b[n + 1] = b' ';
+    n += 2;
+    out.reserve(n + iface.len() + 6 + 2 * data.len());
+    out.extend_from_slice(&b[..n]);
     out.extend_from_slice(iface);
-    out.push(b' ');
-    out.extend_from_slice(&[HEX[(id >> 8 & 0xF) as usize], HEX[(id >> 4 & 0xF) as usize], HEX[(id & 0xF) as usize], b'#']);
-    for b in data {
-        out.extend_from_slice(&[HEX[(b >> 4) as usize], HEX[(b & 0xF) as usize]]);
+    let mut t = [0u8; 22];
+    t[0] = b' ';
+    t[1] = HEX[(id >> 8 & 0xF) as usize];
+    t[2] = HEX[(id >> 4 & 0xF) as usize];
+    t[3] = HEX[(id & 0xF) as usize];
+    t[4] = b'#';
+    let mut m = 5;
+    for &x in data.iter().take(8) {
+        t[m] = HEX[(x >> 4) as usize];
+        t[m + 1] = HEX[(x & 0xF) as usize];
+        m += 2;
     }
-    out.push(b'\n');
+    t[m] = b'\n';
+    out.extend_from_slice(&t[..m + 1]);
 }
 
 /// A buffered candump writer.

@@ -189,20 +189,64 @@ impl Default for SwitchingConfig {
     }
 }
 
+/// The thermal bias curve and its field learning.
+///
+/// Per axis `b(T) = p2 + p1 (T - t0) + p3 (T - t0)^2 + p4 (T - t0)^3`, deg/s,
+/// with `p3` used from `order = 2` and `p4` at `order = 3`. The first two
+/// keys are the paper's eq. 20 (`W = p1 (T - T0) + p2`), so a config with only
+/// `t0`, `p1`, `p2` is the paper's linear curve. Outside `[t_min, t_max]` (the
+/// calibrated range; each bound optional) the curve is evaluated at the
+/// nearest edge and the estimate carries `FlagThermalClamp`.
+/// `gyrocomp calibrate --write` emits this section.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ThermalConfig {
-    /// Reference temperature of the curve, deg C.
+    /// Reference temperature of the curve, deg C. Default 25.
     pub t0: f64,
-    /// Slope per axis, deg/s per deg C.
+    /// Slope per axis, deg/s per deg C. Default 0.
     pub p1: [f64; 3],
-    /// Bias at t0 per axis, deg/s.
+    /// Bias at t0 per axis, deg/s. Default 0.
     pub p2: [f64; 3],
+    /// Polynomial order, 1 (default, linear as in the paper), 2 or 3.
+    pub order: u8,
+    /// Quadratic coefficient per axis, deg/s per (deg C)^2; must be 0 unless order >= 2. Default 0.
+    pub p3: [f64; 3],
+    /// Cubic coefficient per axis, deg/s per (deg C)^3; must be 0 unless order = 3. Default 0.
+    pub p4: [f64; 3],
+    /// Lower edge of the calibrated temperature range, deg C. Default: none (no clamp below).
+    pub t_min: Option<f64>,
+    /// Upper edge of the calibrated temperature range, deg C. Default: none (no clamp above).
+    pub t_max: Option<f64>,
+    /// Refine the slope `p1` in the field from the EKF bias learned in
+    /// quasi-static stretches at different temperatures. Default false.
+    pub learn: bool,
+    /// Seconds after power-on before the slope learner takes any point (the
+    /// sensor's warm-up transient is not a thermal trend). Default 600.
+    pub learn_after_s: f64,
+    /// Temperature spread (max - min within one power cycle, deg C) the learner
+    /// must have seen before the slope moves at all. Default 5.
+    pub learn_min_spread: f64,
+    /// Largest change of the learned slope from the configured `p1`, per
+    /// axis, deg/s per deg C. Default 0.01 on every axis.
+    pub learn_max_dev: [f64; 3],
 }
 
 impl Default for ThermalConfig {
     fn default() -> Self {
-        ThermalConfig { t0: 25.0, p1: [0.0; 3], p2: [0.0; 3] }
+        ThermalConfig {
+            t0: 25.0,
+            p1: [0.0; 3],
+            p2: [0.0; 3],
+            order: 1,
+            p3: [0.0; 3],
+            p4: [0.0; 3],
+            t_min: None,
+            t_max: None,
+            learn: false,
+            learn_after_s: 600.0,
+            learn_min_spread: 5.0,
+            learn_max_dev: [0.01; 3],
+        }
     }
 }
 
@@ -439,10 +483,35 @@ impl Config {
         positive("switching.jerk_window_s", s.jerk_window_s)?;
         let t = &self.thermal;
         finite("thermal.t0", t.t0)?;
+        if !(1..=3).contains(&t.order) {
+            return err("thermal.order", format!("must be 1, 2 or 3, got {}", t.order));
+        }
         for a in 0..3 {
             finite(&format!("thermal.p1[{a}]"), t.p1[a])?;
             finite(&format!("thermal.p2[{a}]"), t.p2[a])?;
+            finite(&format!("thermal.p3[{a}]"), t.p3[a])?;
+            finite(&format!("thermal.p4[{a}]"), t.p4[a])?;
+            non_negative(&format!("thermal.learn_max_dev[{a}]"), t.learn_max_dev[a])?;
         }
+        if t.order < 2 && t.p3.iter().any(|v| *v != 0.0) {
+            return err("thermal.p3", format!("is non-zero but thermal.order = {} (p3 is used from order 2)", t.order));
+        }
+        if t.order < 3 && t.p4.iter().any(|v| *v != 0.0) {
+            return err("thermal.p4", format!("is non-zero but thermal.order = {} (p4 is used at order 3)", t.order));
+        }
+        if let Some(v) = t.t_min {
+            finite("thermal.t_min", v)?;
+        }
+        if let Some(v) = t.t_max {
+            finite("thermal.t_max", v)?;
+        }
+        if let (Some(lo), Some(hi)) = (t.t_min, t.t_max) {
+            if lo >= hi {
+                return err("thermal.t_max", format!("must be > thermal.t_min ({lo}), got {hi}"));
+            }
+        }
+        non_negative("thermal.learn_after_s", t.learn_after_s)?;
+        positive("thermal.learn_min_spread", t.learn_min_spread)?;
         let r = &self.robust;
         positive("robust.accel_tau_s", r.accel_tau_s)?;
         non_negative("robust.dwell_s", r.dwell_s)?;
@@ -499,6 +568,15 @@ mod tests {
         assert!(bad("[input]\nrate_hz = -5.0").contains("input.rate_hz"));
         assert!(bad("[input]\nprofile = \"adis9999\"").contains("input.profile"));
         assert!(bad("[thermal]\np1 = [0.0, inf, 0.0]").contains("thermal.p1[1]"));
+        assert!(bad("[thermal]\norder = 4").contains("thermal.order"));
+        assert!(bad("[thermal]\norder = 0").contains("thermal.order"));
+        assert!(bad("[thermal]\np3 = [0.0, 1e-5, 0.0]").contains("thermal.p3"));
+        assert!(bad("[thermal]\norder = 2\np4 = [0.0, 0.0, 1e-7]").contains("thermal.p4"));
+        assert!(bad("[thermal]\norder = 3\np4 = [0.0, nan, 0.0]").contains("thermal.p4[1]"));
+        assert!(bad("[thermal]\nt_min = 40.0\nt_max = 10.0").contains("thermal.t_max"));
+        assert!(bad("[thermal]\nt_min = -inf").contains("thermal.t_min"));
+        assert!(bad("[thermal]\nlearn_min_spread = 0.0").contains("thermal.learn_min_spread"));
+        assert!(bad("[thermal]\nlearn_max_dev = [0.01, -0.01, 0.01]").contains("thermal.learn_max_dev[1]"));
         assert!(bad("[estimator]\nmode = \"magic\"").contains("mode"));
         assert!(bad("[robust]\ngate_sigma = 0.0").contains("robust.gate_sigma"));
         assert!(bad("[robust]\naccel_tau_s = -1.0").contains("robust.accel_tau_s"));
@@ -512,6 +590,22 @@ mod tests {
         assert!(e.contains("innr"), "{e}");
         let e = bad("[swtching]\n");
         assert!(e.contains("swtching"), "{e}");
+    }
+
+    #[test]
+    fn thermal_paper_contract_and_polynomial_form() {
+        // The paper's form keeps working as it is, and means order 1, no clamp, no learning.
+        let c = Config::parse("[thermal]\nt0 = 20.0\np1 = [0.002, 0.0044, 0.0192]\np2 = [0.0011, 0.0003, 0.0012]", "t").unwrap();
+        assert_eq!(c.thermal.order, 1);
+        assert_eq!((c.thermal.t_min, c.thermal.t_max, c.thermal.learn), (None, None, false));
+        let c = Config::parse(
+            "[thermal]\norder = 3\np1 = [1.0, 1.0, 1.0]\np3 = [1e-4, 0.0, 0.0]\np4 = [0.0, 0.0, -1e-6]\nt_min = 0.0\nt_max = 70.0\nlearn = true",
+            "t",
+        )
+        .unwrap();
+        assert_eq!(c.thermal.p4[2], -1e-6);
+        assert_eq!(c.thermal.t_max, Some(70.0));
+        assert_eq!(Config::parse(&c.to_toml(), "x").unwrap(), c);
     }
 
     #[test]

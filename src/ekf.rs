@@ -13,8 +13,10 @@
 use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
 use std::f64::consts::PI;
 
-/// Largest |pitch| the kinematics are evaluated at (the Euler form is singular at 90 deg).
-pub const PITCH_LIMIT: f64 = 89.9 * PI / 180.0;
+/// Largest |pitch| the filter holds: the Euler-angle kinematics are singular
+/// at 90 deg and the covariance is numerically meaningless well before it. A
+/// ground vehicle never comes near; a state pushed there is clamped.
+pub const PITCH_LIMIT: f64 = 85.0 * PI / 180.0;
 
 /// Wrap an angle to (-pi, pi].
 #[inline]
@@ -222,24 +224,31 @@ impl Ekf {
         let nis = (nu.transpose() * si * nu)[0];
         let ka = pa * si;
         self.att += ka * nu;
+        // Joseph form, (I - K H) P (I - K H)^T + K R K^T, in blocks: it keeps P
+        // symmetric positive definite even where the Euler kinematics make it
+        // badly conditioned (pitch near its limit), and it is exact for the
+        // angles-only gain K = [Ka; 0] as well.
+        let h = mask_h(yaw);
+        let rm = Matrix3::from_diagonal(&masked_r(r, yaw));
+        let a = Matrix3::identity() - ka * h;
+        let kar = ka * rm;
         match learn {
             Learn::AnglesAndBias => {
                 let kb = pb * si;
                 self.bias += (kb * nu).map(|d| d.clamp(-max_db, max_db));
-                // P -= K (P H^T)^T, block by block.
-                let paa = self.paa - ka * pa.transpose();
-                let pab = self.pab - ka * pb.transpose();
-                let pbb = self.pbb - kb * pb.transpose();
+                let kbh = kb * h;
+                let apaa = a * self.paa;
+                let paa = apaa * a.transpose() + kar * ka.transpose();
+                let pab = a * self.pab - apaa * kbh.transpose() + kar * kb.transpose();
+                let pbh = self.pab.transpose() * kbh.transpose();
+                let pbb = self.pbb - pbh - pbh.transpose() + kbh * self.paa * kbh.transpose() + kb * rm * kb.transpose();
                 self.paa = symmetric(&paa);
                 self.pab = pab;
                 self.pbb = symmetric(&pbb);
             }
             Learn::AnglesOnly => {
-                // Joseph form with K = [Ka; 0]: exact for this sub-optimal gain.
-                let ika = Matrix3::identity() - ka * mask_h(yaw);
-                let rk = ka * Matrix3::from_diagonal(&masked_r(r, yaw)) * ka.transpose();
-                self.paa = symmetric(&(ika * self.paa * ika.transpose() + rk));
-                self.pab = ika * self.pab;
+                self.paa = symmetric(&(a * self.paa * a.transpose() + kar * ka.transpose()));
+                self.pab = a * self.pab;
             }
         }
         self.normalise_angles();

@@ -9,12 +9,20 @@
 //! - `startup_thermal`, `startup_average`: the paper's comparison cases 2 and
 //!   1: the gyro integrated with the bias averaged over the learning window,
 //!   with / without the thermal curve; no fusion at all.
+//!
+//! Thermal curve (`[thermal]`, see `thermal`): polynomial up to third order,
+//! evaluated at the nearest edge outside `[t_min, t_max]`, with
+//! `flags::THERMAL_CLAMP` on every sample where that happens (modes that use
+//! the curve). With `[thermal] learn = true` (mode `paper` only: it needs the
+//! EKF's bias) a `SlopeLearner` refines `p1` from the bias held in
+//! quasi-static samples after the learning window and `learn_after_s`;
+//! `slope_state` / `set_slope_state` save and restore what it learned.
 
 use crate::adis::Sample;
 use crate::config::{Config, Mode};
 use crate::ekf::{heading_from_mag, tilt_from_accel, wrap_pi, Ekf, Learn};
 use crate::switching::{Band, Switching};
-use crate::thermal::Thermal;
+use crate::thermal::{SlopeLearner, SlopeParams, SlopeState, Thermal};
 use nalgebra::Vector3;
 
 const D2R: f64 = std::f64::consts::PI / 180.0;
@@ -95,6 +103,11 @@ pub struct Estimator {
     angle_sigma: f64,
     bias_sigma: f64,
     thermal: Thermal,
+    /// The configured curve (`thermal` = this plus the learned slope correction).
+    thermal_base: Thermal,
+    /// Field learning of the slope (`[thermal] learn`), and when it may start (s).
+    slope: Option<SlopeLearner>,
+    slope_after: f64,
     switching: Switching,
     ekf: Ekf,
     started: bool,
@@ -166,6 +179,12 @@ impl Estimator {
             angle_sigma: k.init_angle_sigma_deg * D2R,
             bias_sigma: k.init_bias_sigma * D2R,
             thermal: Thermal::new(&cfg.thermal),
+            thermal_base: Thermal::new(&cfg.thermal),
+            slope: cfg.thermal.learn.then(|| {
+                let th = &cfg.thermal;
+                SlopeLearner::new(SlopeParams { min_spread: th.learn_min_spread, max_dev: th.learn_max_dev }, th.p1)
+            }),
+            slope_after: cfg.thermal.learn_after_s,
             switching: Switching::new(&cfg.switching, p.rate_hz),
             ekf: Ekf::new(Vector3::zeros(), Vector3::zeros(), 1.0, 1.0),
             started: false,
@@ -221,6 +240,33 @@ impl Estimator {
         };
         let s = |i: usize| self.ekf.pbb[(i, i)].max(0.0).sqrt() * R2D;
         Some(Learned { bias, bias_sigma: [s(0), s(1), s(2)], temp })
+    }
+
+    /// The thermal curve in use (its `p1` includes the learned correction).
+    pub fn thermal(&self) -> &Thermal {
+        &self.thermal
+    }
+
+    /// What the slope learner has learned (None when `[thermal] learn` is off), for saving.
+    pub fn slope_state(&self) -> Option<SlopeState> {
+        self.slope.as_ref().map(|l| l.state())
+    }
+
+    /// Continue slope learning from a saved state (before the first sample).
+    /// False when learning is off or the state was saved under another `p1`.
+    pub fn set_slope_state(&mut self, st: &SlopeState) -> bool {
+        let ok = self.slope.as_mut().is_some_and(|l| l.restore(st));
+        self.apply_slope();
+        ok
+    }
+
+    fn apply_slope(&mut self) {
+        if let Some(l) = &self.slope {
+            let c = l.correction();
+            for i in 0..3 {
+                self.thermal.p1[i] = self.thermal_base.p1[i] + c[i];
+            }
+        }
     }
 
     pub fn g0(&self) -> f64 {
@@ -288,6 +334,9 @@ impl Estimator {
         // Predict: the gyro drives the angles; the thermal curve moves the bias.
         let omega = Vector3::new(s.gyro[0], s.gyro[1], s.gyro[2]) * D2R;
         let thermal_on = self.mode != Mode::StartupAverage;
+        if thermal_on && self.thermal.clamps(s.temp) {
+            fl |= flags::THERMAL_CLAMP;
+        }
         let db = if thermal_on { Vector3::from(self.thermal.delta(self.temp_prev, s.temp)) * D2R } else { Vector3::zeros() };
         self.temp_prev = s.temp;
         if dt > 0.0 {
@@ -356,6 +405,17 @@ impl Estimator {
                     self.learn_n += 1;
                 }
             }
+        }
+
+        // Field learning of the thermal slope: quasi-static samples after the
+        // learning window and `learn_after_s`, inside the calibrated range.
+        if self.slope.is_some() && mode == 0 && self.learn_done && t >= self.slope_after && !self.thermal.clamps(s.temp) {
+            let b = self.bias_deg();
+            let c = self.thermal_base.bias(s.temp);
+            if let Some(l) = self.slope.as_mut() {
+                l.push(s.temp, [b[0] - c[0], b[1] - c[1], b[2] - c[2]], dt);
+            }
+            self.apply_slope();
         }
 
         if !self.learn_done && t >= self.learn_end && !warm {
@@ -572,8 +632,13 @@ mod tests {
         }
     }
 
+    /// These tests pin the paper's behaviour: paper mode unless the text names a mode.
     fn cfg(text: &str) -> Config {
-        Config::parse(text, "test").unwrap()
+        let mut c = Config::parse(text, "test").unwrap();
+        if !text.contains("mode =") {
+            c.estimator.mode = Mode::Paper;
+        }
+        c
     }
 
     #[test]
@@ -671,6 +736,36 @@ mod tests {
         s.accel = [0.0, 0.0, -1.25];
         s.cnt = 3;
         assert_eq!(e.step(&s).mode, 2);
+    }
+
+    #[test]
+    fn thermal_curve_clamps_outside_the_calibrated_range_and_flags_it() {
+        let c = cfg("[estimator]\nwarmup_s = 1.0\nlearn_s = 5.0\n[thermal]\nt0 = 25.0\norder = 2\np1 = [0.01, 0.01, 0.01]\np3 = [0.001, 0.0, 0.0]\nt_min = 10.0\nt_max = 40.0");
+        let mut e = Estimator::new(&c);
+        let mut cnt = 0u16;
+        for _ in 0..(204.8 * 10.0) as u32 {
+            let est = e.step(&rest(cnt, [0.0; 3], 0.0, 30.0));
+            assert_eq!(est.flags & flags::THERMAL_CLAMP, 0);
+            cnt = cnt.wrapping_add(1);
+        }
+        let held = e.bias_deg();
+        // out of band, warming from 30 to 50 C: the curve moves the bias up to 40 C only
+        let mut est = Estimate::default();
+        for k in 0..1000 {
+            let temp = 30.0 + 20.0 * k as f64 / 999.0;
+            let mut s = rest(cnt, [0.0; 3], 0.0, temp);
+            s.accel = [0.0, 0.0, -1.5];
+            est = e.step(&s);
+            cnt = cnt.wrapping_add(1);
+            assert_eq!(est.flags & flags::THERMAL_CLAMP != 0, temp > 40.0, "at {temp}");
+        }
+        let f = |t: f64| 0.01 * (t - 25.0) + 0.001 * (t - 25.0) * (t - 25.0);
+        assert!((est.bias[0] - (held[0] + f(40.0) - f(30.0))).abs() < 1e-9, "{:?}", est.bias);
+        assert!((est.bias[1] - (held[1] + 0.1)).abs() < 1e-9);
+        // startup_average does not use the curve, so it never clamps
+        let c = cfg("[estimator]\nmode = \"startup_average\"\n[thermal]\nt_max = 20.0");
+        let mut e = Estimator::new(&c);
+        assert_eq!(e.step(&rest(0, [0.0; 3], 0.0, 30.0)).flags & flags::THERMAL_CLAMP, 0);
     }
 
     #[test]

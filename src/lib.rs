@@ -6,8 +6,10 @@
 //! [`candump`] log files, [`replay`], and the daemon.
 
 pub mod adis;
+pub mod calibrate;
 pub mod candump;
 pub mod config;
+pub mod daemon;
 pub mod ekf;
 pub mod estimator;
 pub mod evaluate;

@@ -24,8 +24,40 @@ enum Cmd {
         #[arg(long)]
         csv: Option<PathBuf>,
     },
+    /// Fit the thermal bias curve from thermal-chamber runs (candump logs of a static sensor).
+    ///
+    /// One log per power cycle, recorded from power-on while the sensor
+    /// self-heats in the chamber. Each run's warm-up transient is found by a
+    /// joint fit of `c_run + curve(T) + A exp(-t/tau)` (tau 5..300 s) and cut at
+    /// 5 tau when significant (|A| > 5 standard errors); each run's own turn-on
+    /// bias `c_run` is removed; the shared curve is fitted by least squares on
+    /// 1-s means about the config's `[thermal] t0` (default 25 C), with 95 %
+    /// intervals. Corrupt logs (over 1 % bad lines or checksum failures),
+    /// empty or shorter than 120 s are refused by name. Details: the
+    /// `gyrocomp::calibrate` module documentation.
+    Calibrate {
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// One log per chamber run (one power cycle each).
+        #[arg(long, num_args = 1.., required = true)]
+        input: Vec<PathBuf>,
+        /// Polynomial order: 1 (linear, as in the paper), 2 or 3.
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=3))]
+        order: u8,
+        /// Write the fitted [thermal] section to this file.
+        #[arg(long)]
+        write: Option<PathBuf>,
+        /// Write SVG plots into this directory.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+    },
     /// Validate a config file and print the effective configuration.
     CheckConfig { file: PathBuf },
+    /// Run the daemon on the bus named by `[can] interface`.
+    Run {
+        #[arg(long)]
+        config: PathBuf,
+    },
     /// Simulate a scenario: DIR/imu.log (ADIS on CAN), truth.csv, sensor.toml, bias.csv, scenario.toml, config.toml.
     Simulate(gyrocomp::sim::cli::SimulateArgs),
     /// Replay a simulated run (or many seeds) and score it against the truth.
@@ -43,6 +75,11 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.cmd {
         Cmd::Replay { config, input, output, csv } => cmd_replay(config, input, output, csv),
+        Cmd::Run { config } => {
+            init_logging();
+            gyrocomp::daemon::run(&config).map_err(|e| format!("{e:#}"))
+        }
+        Cmd::Calibrate { config, input, order, write, plot } => cmd_calibrate(config, input, order, write, plot),
         Cmd::CheckConfig { file } => Config::load(&file).map(|c| print!("{}", c.to_toml())).map_err(|e| e.to_string()),
         Cmd::Simulate(a) => gyrocomp::sim::cli::run(&a),
         Cmd::Evaluate(a) => gyrocomp::evaluate::run(&a),
@@ -72,6 +109,43 @@ fn cmd_replay(config: Option<PathBuf>, input: PathBuf, output: Option<PathBuf>, 
             sum.bad_lines,
             sum.input.frames
         ));
+    }
+    Ok(())
+}
+
+/// journald when stderr is connected to the journal (systemd sets
+/// JOURNAL_STREAM), plain stderr otherwise. RUST_LOG filters (default info).
+fn init_logging() {
+    use tracing_subscriber::prelude::*;
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into());
+    if std::env::var_os("JOURNAL_STREAM").is_some() {
+        if let Ok(j) = tracing_journald::layer() {
+            tracing_subscriber::registry().with(filter).with(j).init();
+            return;
+        }
+    }
+    use std::io::IsTerminal;
+    tracing_subscriber::fmt().with_env_filter(filter).with_ansi(std::io::stderr().is_terminal()).with_writer(std::io::stderr).init();
+}
+
+fn cmd_calibrate(
+    config: Option<PathBuf>,
+    input: Vec<PathBuf>,
+    order: u8,
+    write: Option<PathBuf>,
+    plot: Option<PathBuf>,
+) -> Result<(), String> {
+    let cfg = load_config(&config)?;
+    let cal = gyrocomp::calibrate::calibrate_files(&cfg, &input, order).map_err(|e| e.to_string())?;
+    print!("{}", cal.render());
+    if let Some(p) = write {
+        cal.write_toml(&p).map_err(|e| e.to_string())?;
+        println!("wrote {}", p.display());
+    }
+    if let Some(d) = plot {
+        for p in cal.plot(&d).map_err(|e| e.to_string())? {
+            println!("wrote {}", p.display());
+        }
     }
     Ok(())
 }

@@ -28,7 +28,7 @@ pub struct OutFrame {
 /// Input-path counters published (modulo 256) in EST_STATUS.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct StatusCounters {
-    /// Frames and samples dropped by the input checks (all causes).
+    /// Frames and samples dropped by the input checks (all causes but unknown IDs).
     pub errors: u64,
     /// Samples lost in counter gaps.
     pub lost: u64,

@@ -57,7 +57,7 @@ impl Pipeline {
                 let est = self.estimator.step(&s);
                 self.mode_samples[(est.mode as usize).min(2)] += 1;
                 let c = &self.assembler.counters;
-                let sc = StatusCounters { errors: c.dropped(), lost: c.lost };
+                let sc = StatusCounters { errors: c.errors(), lost: c.lost };
                 let frames = encode(&est, &sc, &self.ids, self.extra_flags);
                 sink.output(&est, &frames);
             }

@@ -147,6 +147,90 @@ pub fn run<R: Read, S: Sink>(pipe: &mut Pipeline, input: R, sink: &mut S) -> io:
     Ok(sum)
 }
 
+/// One parsed line, as the parsing thread hands it over.
+#[derive(Clone, Copy, Debug)]
+enum Item {
+    Frame { t_us: u64, id: u32, extended: bool, remote: bool, fd: bool, len: u8, data: [u8; 8] },
+    ErrorFrame,
+    Bad { line_no: u64, err: LineError },
+}
+
+const BATCH: usize = 8192;
+
+/// Parse a stream into batches of items on the current thread.
+fn parse_into<R: Read>(input: R, tx: std::sync::mpsc::SyncSender<Vec<Item>>, back: std::sync::mpsc::Receiver<Vec<Item>>) -> io::Result<()> {
+    let mut rd = LineReader::new(input);
+    let mut batch = Vec::with_capacity(BATCH);
+    while let Some(line) = rd.next_line()? {
+        let item = match line {
+            Ok(l) if l.is_empty() => continue,
+            Ok(l) => match parse_line(l) {
+                Ok(f) if f.error => Item::ErrorFrame,
+                Ok(f) => {
+                    let mut data = [0u8; 8];
+                    let n = f.len.min(8);
+                    data[..n].copy_from_slice(&f.data[..n]);
+                    Item::Frame { t_us: f.t_us, id: f.id, extended: f.extended, remote: f.remote, fd: f.fd, len: f.len as u8, data }
+                }
+                Err(err) => Item::Bad { line_no: rd.line_no, err },
+            },
+            Err(err) => Item::Bad { line_no: rd.line_no, err },
+        };
+        batch.push(item);
+        if batch.len() == BATCH {
+            let next = back.try_recv().unwrap_or_else(|_| Vec::with_capacity(BATCH));
+            if tx.send(std::mem::replace(&mut batch, next)).is_err() {
+                return Ok(());
+            }
+        }
+    }
+    if !batch.is_empty() {
+        let _ = tx.send(batch);
+    }
+    Ok(())
+}
+
+/// `run` on two threads: this one parses, a second steps the pipeline and
+/// writes. The order of frames is kept, so the output is the same bytes as
+/// `run` gives (a test checks it).
+pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: R, sink: &mut S) -> io::Result<Summary> {
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Item>>(4);
+    let (back_tx, back_rx) = std::sync::mpsc::sync_channel::<Vec<Item>>(8);
+    std::thread::scope(|sc| {
+        let worker = sc.spawn(move || {
+            let mut sum = Summary::default();
+            for mut batch in rx {
+                for it in batch.drain(..) {
+                    sum.lines += 1;
+                    match it {
+                        Item::Frame { t_us, id, extended, remote, fd, len, data } => {
+                            // Only classic payloads (<= 8 bytes) matter: FD frames are
+                            // dropped as unknown by the assembler whatever they carry.
+                            let n = (len as usize).min(8);
+                            pipe.push(t_us, RawFrame { id, extended, remote, fd, data: &data[..n] }, sink)
+                        }
+                        Item::ErrorFrame => sum.error_frames += 1,
+                        Item::Bad { line_no, err } => {
+                            sum.bad_lines += 1;
+                            if sum.bad_examples.len() < REPORT_BAD_LINES as usize {
+                                sum.bad_examples.push((line_no, err));
+                            }
+                        }
+                    }
+                }
+                let _ = back_tx.try_send(batch);
+            }
+            sum.input = *pipe.counters();
+            sum.mode_seconds = pipe.mode_seconds();
+            sum.mode_samples = pipe.mode_samples;
+            sum
+        });
+        let parsed = parse_into(input, tx, back_rx);
+        let sum = worker.join().map_err(|_| io::Error::other("replay worker panicked"))?;
+        parsed.map(|_| sum)
+    })
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
     #[error("cannot open input {path}: {source}")]
@@ -188,7 +272,7 @@ pub fn replay_files(cfg: &Config, files: &ReplayFiles<'_>, keep: Option<&mut Vec
     };
     let mut pipe = Pipeline::new(cfg);
     let mut sink = ReplaySink { log: log.as_mut(), csv: csv.as_mut(), keep, err: None };
-    let sum = run(&mut pipe, input, &mut sink).map_err(|source| ReplayError::Read { path: ip, source })?;
+    let sum = run_threaded(&mut pipe, input, &mut sink).map_err(|source| ReplayError::Read { path: ip, source })?;
     if let Some(e) = sink.err.take() {
         return Err(ReplayError::Output { path: out_name(files), source: e });
     }

@@ -112,7 +112,8 @@ impl Switching {
         // The sample leaving the newer half (n/2 ago) joins the older half;
         // the sample leaving the window (n ago) leaves the older half.
         if self.filled >= h {
-            let mid = self.ring[(self.head + n - h) % n];
+            let mi = if self.head >= h { self.head - h } else { self.head + n - h };
+            let mid = self.ring[mi];
             for k in 0..3 {
                 self.sum_new[k] -= mid[k];
                 self.sum_old[k] += mid[k];
@@ -126,7 +127,7 @@ impl Switching {
             self.sum_mag -= old[3];
         }
         self.ring[self.head] = [a[0], a[1], a[2], mag];
-        self.head = (self.head + 1) % n;
+        self.head = if self.head + 1 == n { 0 } else { self.head + 1 };
         for k in 0..3 {
             self.sum_new[k] += a[k];
         }

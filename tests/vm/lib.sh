@@ -5,12 +5,16 @@ VM_DIR="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 REPO_ROOT="$(cd "$VM_DIR/../.." && pwd)"
 CACHE="${GYROCOMP_VM_CACHE:-$REPO_ROOT/target/vm}"
 # Bump when the layout of cached artefacts changes, to force a rebuild.
-CACHE_FORMAT=1
+CACHE_FORMAT=2
 
+# shellcheck disable=SC2034  # used by the scripts that source this file
 # Console markers shared by the guests and the host-side parsers.
 MARK_RESULT="GYROCOMP-VM-RESULT"
 MARK_COLLECT_BEGIN="GYROCOMP-VM-COLLECT-BEGIN"
 MARK_COLLECT_END="GYROCOMP-VM-COLLECT-END"
+
+# Print the comment block at the top of the running script (its usage text).
+usage() { awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; }
 
 log() { printf '[vm] %s\n' "$*" >&2; }
 die() { printf '[vm] ERROR: %s\n' "$*" >&2; exit 1; }
@@ -67,12 +71,36 @@ stage_libs_for_tree() {
     done < <(find "$root" -type f -perm /111 -print0)
 }
 
-# Pack the staging tree $1 into the gzip'ed newc cpio $2 (owned by root, atomic).
+# Where the base tree $2 has a symlink for a directory of the staging tree $1 (merged
+# /usr: bin -> usr/bin, lib -> usr/lib ...), move the staged files to the link's target:
+# a directory entry in the overlay archive would replace the base's symlink.
+rebase_on_symlinks() {
+    local stage=$1 base=$2 d rel link tgt moved=1
+    while [ $moved = 1 ]; do
+        moved=0
+        while IFS= read -r d; do
+            rel=${d#"$stage"}
+            [ -L "$base$rel" ] || continue
+            link=$(readlink "$base$rel")
+            case $link in
+                /*) tgt=$link ;;
+                *) tgt=$(realpath -m -s "$(dirname "$rel")/$link") ;;
+            esac
+            mkdir -p "$stage$tgt"
+            cp -a "$d/." "$stage$tgt/"
+            rm -rf "$d"
+            moved=1; break
+        done < <(find "$stage" -mindepth 1 -type d | LC_ALL=C sort)
+    done
+}
+
+# Pack the staging tree $1 into the newc cpio $2 (owned by root, atomic), compressed
+# with gzip -1 unless $3 is "none".
 pack_cpio() {
-    local root=$1 out=$2
+    local root=$1 out=$2 z=${3:-gzip}
     chmod 755 "$root"
     (cd "$root" && find . -mindepth 1 | LC_ALL=C sort | cpio --quiet -o -H newc -R 0:0) \
-        | gzip -1 > "$out.tmp.$$"
+        | if [ "$z" = none ]; then cat; else gzip -1; fi > "$out.tmp.$$"
     mv -f "$out.tmp.$$" "$out"
 }
 
@@ -92,12 +120,19 @@ parse_spec() {
     return 0
 }
 
-# The prepared kernel: sets KVER, VMLINUZ, KMOD_DIR (modules), KROOT (extracted package).
+# The prepared kernel: sets KVER, VMLINUZ, VMLINUX, KERNEL_IMG, KMOD_DIR (modules), KROOT.
+# shellcheck disable=SC2034,SC2153  # the variables come from the env file
 load_kernel_env() {
     [ -f "$CACHE/kernel/env" ] || return 1
     # shellcheck disable=SC1091
     . "$CACHE/kernel/env"
-    [ -f "$VMLINUZ" ] && [ -d "$KMOD_DIR" ]
+    [ "${KFORMAT:-}" = "$CACHE_FORMAT" ] || return 1
+    [ -f "$VMLINUZ" ] && [ -d "$KMOD_DIR" ] || return 1
+    # What -kernel gets: the ELF vmlinux (PVH boot) unless GYROCOMP_VM_BZIMAGE=1.
+    KERNEL_IMG=$VMLINUZ
+    if [ -n "${VMLINUX:-}" ] && [ -f "$VMLINUX" ] && [ "${GYROCOMP_VM_BZIMAGE:-0}" != 1 ]; then
+        KERNEL_IMG=$VMLINUX
+    fi
 }
 
 # Console stream filter: strip CRs, save everything to $1, show all but collect blocks.

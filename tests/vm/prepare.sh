@@ -18,7 +18,7 @@ while [ $# -gt 0 ]; do
         --rootfs) ROOTFS=1 ;;
         --refresh) REFRESH=1 ;;
         --quiet) QUIET=1 ;;
-        -h|--help) sed -n '2,10p' "$0"; exit 0 ;;
+        -h|--help) usage; exit 0 ;;
         *) die "prepare.sh: unknown argument '$1' (see --help)" ;;
     esac
     shift
@@ -29,7 +29,7 @@ export DEBIAN_FRONTEND=noninteractive
 # command -> Debian package providing it
 HOST_PKGS=(busybox:busybox-static candump:can-utils ip:iproute2 modprobe:kmod timeout:coreutils flock:util-linux)
 VM_PKGS=(qemu-system-x86_64:qemu-system-x86 cpio:cpio gzip:gzip debootstrap:debootstrap
-         systemd-analyze:systemd ldd:libc-bin base64:coreutils)
+         systemd-analyze:systemd ldd:libc-bin base64:coreutils xz:xz-utils)
 
 APT_UPDATED=0
 apt_update_once() {
@@ -81,6 +81,24 @@ current_kernel_pkg() {
     echo "$pkg"
 }
 
+# Decompress the ELF kernel inside a bzImage (as the kernel's scripts/extract-vmlinux does).
+extract_vmlinux() {
+    local z=$1 out=$2 magic dec off
+    for magic in 'xz:\xfd7zXZ\x00' 'zstd:\x28\xb5\x2f\xfd' 'gzip:\x1f\x8b\x08'; do
+        dec=${magic%%:*}; magic=${magic#*:}
+        command -v "$dec" >/dev/null || continue
+        for off in $(LC_ALL=C grep -obUaP "$magic" "$z" | cut -d: -f1 | head -n 5); do
+            # The decompressor complains about the bytes after the stream: judge the output.
+            tail -c "+$((off + 1))" "$z" | "$dec" -dc > "$out.tmp" 2>/dev/null || true
+            if [ "$(head -c 4 "$out.tmp" | od -An -c | tr -d ' \n')" = '177ELF' ] \
+                    && [ "$(stat -c %s "$out.tmp")" -gt 1000000 ]; then
+                mv -f "$out.tmp" "$out"; return 0
+            fi
+        done
+    done
+    rm -f "$out.tmp"; return 1
+}
+
 prepare_kernel() {
     if [ $REFRESH = 0 ] && load_kernel_env; then
         [ $QUIET = 1 ] || log "kernel $KVER already prepared in $CACHE/kernel"
@@ -93,7 +111,7 @@ prepare_kernel() {
     deb=$(compgen -G "$kdir/${pkg}_*.deb" | head -n 1 || true)
     if [ -z "$deb" ]; then
         log "apt-get download $pkg"
-        (cd "$kdir" && apt-get download -qq "$pkg" 2>&1 | grep -v 'unsandboxed' >&2 || true)
+        (cd "$kdir" && { apt-get download -qq "$pkg" 2>&1 | grep -v 'unsandboxed' >&2; } || true)
         deb=$(compgen -G "$kdir/${pkg}_*.deb" | head -n 1 || true)
         [ -n "$deb" ] || die "apt-get download $pkg failed"
     fi
@@ -129,11 +147,22 @@ prepare_kernel() {
             *.ko.gz) gzip -dc "$f" > "$moddir/$m.ko" ;;
         esac
     done
+    # The uncompressed ELF kernel boots through its PVH entry: ~5 s quicker under TCG
+    # than letting the bzImage decompress itself.
+    local vmlinux="$kdir/vmlinux"
+    if extract_vmlinux "$vmlinuz" "$vmlinux"; then
+        log "extracted $vmlinux (booted via PVH)"
+    else
+        log "could not extract an ELF vmlinux from $vmlinuz; the VMs boot the bzImage"
+        vmlinux=
+    fi
     cat > "$CACHE/kernel/env.tmp" <<EOF
+KFORMAT=$CACHE_FORMAT
 KPKG=$pkg
 KVER=$kver
 KROOT=$kdir/root
 VMLINUZ=$vmlinuz
+VMLINUX=$vmlinux
 KMOD_DIR=$moddir
 EOF
     mv -f "$CACHE/kernel/env.tmp" "$CACHE/kernel/env"

@@ -21,11 +21,14 @@
 # forces one): "host" if this kernel can create a vcan, else a QEMU (TCG) VM booting a
 # Debian kernel with a busybox initramfs.  In host mode /work is a temp dir: test scripts
 # should use relative paths (or $GYROCOMP_WORK), and absolute GUESTPATHs outside /work
-# land under that dir.  GYROCOMP_VM_KEEP=1 keeps the run directory (console log, initrd).
+# land under that dir.  busybox sh runs its own applets before PATH: "ip" is busybox's
+# ip; call /usr/sbin/ip for iproute2's (-details, -statistics), present in both back ends.
+# GYROCOMP_VM_KEEP=1 keeps the run directory (console log, initrd);
+# GYROCOMP_VM_QEMU_ARGS adds qemu arguments; GYROCOMP_VM_CACHE moves the cache.
 set -euo pipefail
 . "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 
-TIMEOUT=300 MEM=512 SMP=2 SCRIPT=
+TIMEOUT=300 MEM=512 SMP=2 SCRIPT=''
 ADDS=() ADD_DIRS=() COLLECTS=() ENVS=() ARGS=()
 while [ $# -gt 0 ]; do
     case $1 in
@@ -38,7 +41,7 @@ while [ $# -gt 0 ]; do
         --collect) COLLECTS+=("${2:?--collect needs GUESTPATH:HOSTPATH}"); shift ;;
         --env) ENVS+=("${2:?--env needs NAME=VALUE}"); shift ;;
         --) shift; ARGS=("$@"); break ;;
-        -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
+        -h|--help) usage; exit 0 ;;
         *) die "run.sh: unknown argument '$1' (see --help)" ;;
     esac
     shift
@@ -63,7 +66,7 @@ host_vcan() {
         ip link set vcan0 up 2>/dev/null || return 1
         return 0
     fi
-    command -v modprobe >/dev/null && modprobe vcan >/dev/null 2>&1 || true
+    if command -v modprobe >/dev/null; then modprobe vcan >/dev/null 2>&1 || true; fi
     ip link add dev vcan0 type vcan >/dev/null 2>&1 || return 1
     HOST_VCAN_CREATED=1
     ip link set vcan0 up || return 1
@@ -92,26 +95,28 @@ run_host() {
     trap "cleanup_host_vcan; [ \"\${GYROCOMP_VM_KEEP:-0}\" = 1 ] || rm -rf '$work'" EXIT
     chmod 755 "$work"
     for s in "${ADDS[@]}"; do
-        parse_spec "$s" /work; p=$(host_map "$work" "$SPEC_GUEST")
+        parse_spec "$s" /work; [ -f "$SPEC_HOST" ] || die "--add $s: not a file (use --add-dir)"
+        p=$(host_map "$work" "$SPEC_GUEST")
         mkdir -p "$(dirname "$p")"; cp -L --preserve=mode "$SPEC_HOST" "$p"
         case $SPEC_GUEST in /work/*) ;; *) [ -x "$p" ] && extra_path="$(dirname "$p"):$extra_path" ;; esac
     done
     for s in "${ADD_DIRS[@]}"; do
-        parse_spec "$s" /work; p=$(host_map "$work" "$SPEC_GUEST")
+        parse_spec "$s" /work; [ -d "$SPEC_HOST" ] || die "--add-dir $s: not a directory"
+        p=$(host_map "$work" "$SPEC_GUEST")
         mkdir -p "$p"; cp -a "$SPEC_HOST/." "$p/"
     done
     mkdir -p "$work/.gyrocomp"; cp "$SCRIPT" "$work/.gyrocomp/test.sh"
 
-    local shell=sh
-    command -v busybox >/dev/null && shell="busybox sh"
-    [ -x /bin/busybox ] && shell="/bin/busybox sh"
+    local shell=(sh)   # busybox sh, as in the VM
+    if [ -x /bin/busybox ]; then shell=(/bin/busybox sh)
+    elif command -v busybox >/dev/null; then shell=(busybox sh); fi
     local e envargs=(GYROCOMP_VCAN_BACKEND=host GYROCOMP_WORK="$work"
                      PATH="$work/bin:$work:$extra_path$PATH")
     for e in "${ENVS[@]}"; do envargs+=("$e"); done
     log "back end: host vcan0; work dir $work"
     local rc=0 pid
     # timeout runs the test in its own process group: kill leftovers (e.g. candump &) after.
-    (cd "$work" && exec env "${envargs[@]}" timeout -k 10 "$TIMEOUT" $shell .gyrocomp/test.sh "${ARGS[@]}" </dev/null 2>&1) &
+    (cd "$work" && exec env "${envargs[@]}" timeout -k 10 "$TIMEOUT" "${shell[@]}" .gyrocomp/test.sh "${ARGS[@]}" </dev/null 2>&1) &
     pid=$!
     wait $pid || rc=$?
     kill -KILL -- "-$pid" 2>/dev/null || true
@@ -151,9 +156,8 @@ build_base() {
     if [ -x /usr/sbin/ip ] || [ -x /sbin/ip ]; then cp -L "$(command -v ip)" "$root/usr/sbin/ip"; fi
     cp "$KMOD_DIR"/*.ko "$root/mod/"
     # libgcc_s is dlopen'ed by glibc (thread cancellation) and linked by Rust binaries.
-    for lib in /lib/x86_64-linux-gnu/libgcc_s.so.1; do
-        [ -e "$lib" ] && stage_file "$lib" "$root" "$lib"
-    done
+    lib=/lib/x86_64-linux-gnu/libgcc_s.so.1
+    if [ -e $lib ]; then stage_file $lib "$root" $lib; fi
     stage_libs_for_tree "$root"
     mknod -m 600 "$root/dev/console" c 5 1
     mknod -m 666 "$root/dev/null" c 1 3
@@ -253,12 +257,15 @@ run_vm() {
     stage="$rundir/stage"
     mkdir -p "$stage/work/.gyrocomp"
     for s in "${ADDS[@]}"; do
-        parse_spec "$s" /work; stage_file "$SPEC_HOST" "$stage" "$SPEC_GUEST"
+        parse_spec "$s" /work; [ -f "$SPEC_HOST" ] || die "--add $s: not a file (use --add-dir)"
+        stage_file "$SPEC_HOST" "$stage" "$SPEC_GUEST"
     done
     for s in "${ADD_DIRS[@]}"; do
-        parse_spec "$s" /work; mkdir -p "$stage$SPEC_GUEST"; cp -a "$SPEC_HOST/." "$stage$SPEC_GUEST/"
+        parse_spec "$s" /work; [ -d "$SPEC_HOST" ] || die "--add-dir $s: not a directory"
+        mkdir -p "$stage$SPEC_GUEST"; cp -a "$SPEC_HOST/." "$stage$SPEC_GUEST/"
     done
     stage_libs_for_tree "$stage" "$BASE_ROOT"
+    rebase_on_symlinks "$stage" "$BASE_ROOT"
     cp "$SCRIPT" "$stage/work/.gyrocomp/test.sh"
     : > "$stage/work/.gyrocomp/collect"
     local cspecs=()
@@ -277,11 +284,14 @@ run_vm() {
     log "back end: QEMU TCG VM, kernel $KVER, ${MEM} MB, $SMP CPU(s), timeout ${TIMEOUT}s (+120s boot margin)"
     t0=$(now)
     set +e
-    local bios=()   # qboot: quicker than SeaBIOS and writes nothing on the console
+    # qboot: quicker than SeaBIOS and writes nothing on the console.  -cpu max offers
+    # RDRAND, so the guest's RNG is ready at once (getrandom() would block for ~20 s).
+    local bios=()
     [ -f /usr/share/qemu/qboot.rom ] && bios=(-bios /usr/share/qemu/qboot.rom)
-    timeout -k 10 "$host_to" qemu-system-x86_64 -accel tcg "${bios[@]}" -m "$MEM" -smp "$SMP" \
-        -nographic -no-reboot -nodefaults -serial stdio -monitor none \
-        -kernel "$VMLINUZ" -initrd "$rundir/initrd.gz" \
+    # shellcheck disable=SC2086  # GYROCOMP_VM_QEMU_ARGS: extra qemu arguments, split on spaces
+    timeout -k 10 "$host_to" qemu-system-x86_64 -accel tcg -cpu max "${bios[@]}" -m "$MEM" -smp "$SMP" \
+        -nographic -no-reboot -nodefaults -serial stdio -monitor none ${GYROCOMP_VM_QEMU_ARGS:-} \
+        -kernel "$KERNEL_IMG" -initrd "$rundir/initrd.gz" \
         -append "console=ttyS0 quiet loglevel=3 panic=-1" </dev/null 2>&1 \
         | console_filter "$console"
     qrc=${PIPESTATUS[0]}

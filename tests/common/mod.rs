@@ -1,0 +1,47 @@
+//! Test support: small synthetic ADIS logs written through the real encoder.
+#![allow(dead_code)]
+
+use gyrocomp::adis::{builtin_profile, InputIds, RawSample};
+use gyrocomp::candump::write_line;
+
+/// A level unit turning slowly in yaw (0.3 deg/s) and rocking a little in roll with a
+/// constant gyro bias, `n` samples at the ADIS16448 rate, as candump text.
+pub fn gentle_log(n: u32, bias: [f64; 3], t0_us: u64) -> Vec<u8> {
+    gentle_log_from(n, bias, t0_us, 0)
+}
+
+/// `gentle_log` whose DATA_CNT starts at `cnt0`.
+pub fn gentle_log_from(n: u32, bias: [f64; 3], t0_us: u64, cnt0: u16) -> Vec<u8> {
+    let p = builtin_profile("adis16448").unwrap();
+    let ids = InputIds::DEFAULT.all();
+    let dt = 1.0 / p.rate_hz;
+    let mut out = Vec::new();
+    for k in 0..n {
+        let t = k as f64 * dt;
+        // roll = 2 deg sin(0.2 t); yaw rate 0.3 deg/s
+        const YAW_RATE: f64 = 0.3;
+        let roll = 2f64.to_radians() * (0.2 * t).sin();
+        let droll = 2.0 * 0.2 * (0.2 * t).cos(); // deg/s
+        let yaw = (YAW_RATE * t).to_radians();
+        let (sr, cr) = roll.sin_cos();
+        // level pitch: body rates p = droll, q = sin(roll) * yaw_rate, r = cos(roll) * yaw_rate
+        let gyro = [droll + bias[0], sr * YAW_RATE + bias[1], cr * YAW_RATE + bias[2]];
+        let accel = [0.0, -sr, -cr];
+        // field NED (0.2, 0, 0.4) gauss, rotated into the body (yaw then roll)
+        let (sy, cy) = yaw.sin_cos();
+        let (mx, my0, mz0) = (0.2 * cy, -0.2 * sy, 0.4);
+        let magn = [mx, cr * my0 + sr * mz0, -sr * my0 + cr * mz0];
+        let mut r = RawSample::quantise(&p, gyro, accel, magn, 30.0);
+        r.cnt = cnt0.wrapping_add(k as u16);
+        let f = r.encode();
+        let ts = t0_us + (t * 1e6) as u64;
+        for (i, d) in f.iter().enumerate() {
+            write_line(&mut out, ts + i as u64 * 10, b"vcan0", ids[i], d);
+        }
+    }
+    out
+}
+
+pub fn bin() -> std::path::PathBuf {
+    std::path::PathBuf::from(env!("CARGO_BIN_EXE_gyrocomp"))
+}

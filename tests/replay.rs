@@ -1,0 +1,201 @@
+//! `gyrocomp replay` as a user runs it: the binary, real files.
+
+mod common;
+use common::{bin, gentle_log};
+use std::process::Command;
+
+fn replay(dir: &std::path::Path, input: &std::path::Path, extra: &[&str]) -> std::process::Output {
+    let mut c = Command::new(bin());
+    c.arg("replay").arg("--input").arg(input).arg("--output").arg(dir.join("out.log")).arg("--csv").arg(dir.join("est.csv"));
+    c.args(extra);
+    c.output().unwrap()
+}
+
+#[test]
+fn replay_is_deterministic_and_learns_the_bias() {
+    let d = tempfile::tempdir().unwrap();
+    let input = d.path().join("in.log");
+    std::fs::write(&input, gentle_log(204 * 40, [0.3, -0.2, 0.25], 1_700_000_000_000_000)).unwrap();
+    let cfg = d.path().join("paper.toml");
+    std::fs::write(&cfg, "[estimator]\nmode = \"paper\"\n").unwrap();
+    let cfg_s = cfg.to_str().unwrap();
+    let o1 = replay(d.path(), &input, &["--config", cfg_s]);
+    assert!(o1.status.success(), "{}", String::from_utf8_lossy(&o1.stderr));
+    let a = std::fs::read(d.path().join("out.log")).unwrap();
+    let csv_a = std::fs::read(d.path().join("est.csv")).unwrap();
+    let o2 = replay(d.path(), &input, &["--config", cfg_s]);
+    assert!(o2.status.success());
+    assert_eq!(a, std::fs::read(d.path().join("out.log")).unwrap(), "output log differs between runs");
+    assert_eq!(csv_a, std::fs::read(d.path().join("est.csv")).unwrap(), "csv differs between runs");
+    // 4 output frames per sample, stamped with the closing (AUX) frame's time.
+    let text = String::from_utf8(a).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 4 * 204 * 40);
+    assert!(lines[0].starts_with("(1700000000.000030) can0 110#"), "{}", lines[0]);
+    // The summary names samples and modes.
+    let err = String::from_utf8_lossy(&o1.stderr);
+    assert!(err.contains("samples 8160"), "{err}");
+    assert!(err.contains("time per mode: fusion"), "{err}");
+    // The last CSV row: bias learned on all axes.
+    let csv = String::from_utf8(csv_a).unwrap();
+    let last: Vec<f64> = csv.lines().last().unwrap().split(',').map(|v| v.parse().unwrap()).collect();
+    for (i, want) in [0.3, -0.2, 0.25].iter().enumerate() {
+        assert!((last[7 + i] - want).abs() < 0.03, "bias axis {i}: {} vs {want}", last[7 + i]);
+    }
+    assert!(csv.starts_with("t,roll,pitch,yaw,rate_x,rate_y,rate_z,bias_x,bias_y,bias_z,mode,temp\n"));
+}
+
+#[test]
+fn bad_lines_are_counted_and_replay_goes_on() {
+    let d = tempfile::tempdir().unwrap();
+    let good = gentle_log(300, [0.0; 3], 1_000_000);
+    let text = String::from_utf8(good).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    // a truncated line, non-hex payload, a 5-byte frame on an input ID,
+    // a flipped payload byte (checksum), a DATA_CNT jump, an unknown ID
+    lines[10] = lines[10][..20].to_string();
+    lines[20] = lines[20].replace('#', "#ZZ").chars().take(lines[20].len()).collect();
+    lines.insert(30, "(1.100000) vcan0 100#0102030405".into());
+    // flip the low bit of the first payload byte of an ACCEL frame
+    let flip = lines[42].clone();
+    let hash = flip.find('#').unwrap();
+    let c = u8::from_str_radix(&flip[hash + 2..hash + 3], 16).unwrap() ^ 1;
+    lines[42] = format!("{}{:X}{}", &flip[..hash + 2], c, &flip[hash + 3..]);
+    lines.insert(50, "(1.200000) vcan0 7FF#0011223344556677".into());
+    lines.push("garbage \u{1}\u{2}".into());
+    let input = d.path().join("bad.log");
+    std::fs::write(&input, lines.join("\n")).unwrap();
+    let o = replay(d.path(), &input, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("bad line 11:"), "{err}");
+    assert!(err.contains("bad line 21:"), "{err}");
+    assert!(err.contains("lines 1203 (bad 3)"), "{err}");
+    assert!(err.contains("wrong_dlc 1"), "{err}");
+    assert!(err.contains("unknown_id 1"), "{err}");
+    // samples 2 (line 10), 5 (line 20) are partial, 10 fails its checksum
+    assert!(err.contains("checksum 1"), "{err}");
+    assert!(err.contains("samples 297"), "{err}");
+}
+
+#[test]
+fn empty_missing_and_garbage_inputs_are_clear_errors() {
+    let d = tempfile::tempdir().unwrap();
+    let empty = d.path().join("empty.log");
+    std::fs::write(&empty, b"").unwrap();
+    let o = replay(d.path(), &empty, &[]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no complete sample"));
+
+    let o = replay(d.path(), &d.path().join("nope.log"), &[]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("cannot open input") && err.contains("nope.log"), "{err}");
+
+    // 100 MB of pseudo-random garbage, with and without newlines
+    let mut g = Vec::with_capacity(100 << 20);
+    let mut x: u64 = 0x9E3779B97F4A7C15;
+    while g.len() < (100 << 20) {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        g.extend_from_slice(&x.to_le_bytes());
+    }
+    let garbage = d.path().join("garbage.log");
+    std::fs::write(&garbage, &g).unwrap();
+    let o = replay(d.path(), &garbage, &[]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("no complete sample"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn counter_jump_of_1000_is_a_counted_gap() {
+    let d = tempfile::tempdir().unwrap();
+    let text = String::from_utf8(gentle_log(400, [0.0; 3], 1_000_000)).unwrap();
+    // renumber samples 200.. by +1000 (DATA_CNT and checksum re-encoded)
+    let mut out = Vec::new();
+    let lines: Vec<&str> = text.lines().collect();
+    for (k, group) in lines.chunks(4).enumerate() {
+        let fr: Vec<_> = group.iter().map(|l| gyrocomp::candump::parse_line(l.as_bytes()).unwrap()).collect();
+        let mut data: [[u8; 8]; 4] = [0, 1, 2, 3].map(|i| fr[i].payload().try_into().unwrap());
+        if k >= 200 {
+            for (i, d) in data.iter_mut().enumerate() {
+                let pos = if i == 3 { 4 } else { 6 };
+                let c = u16::from_le_bytes([d[pos], d[pos + 1]]).wrapping_add(1000);
+                d[pos..pos + 2].copy_from_slice(&c.to_le_bytes());
+            }
+            let cs = gyrocomp::adis::checksum(&data);
+            data[3][6..8].copy_from_slice(&cs.to_le_bytes());
+        }
+        for i in 0..4 {
+            gyrocomp::candump::write_line(&mut out, fr[i].t_us, fr[i].iface, fr[i].id, &data[i]);
+        }
+    }
+    let input = d.path().join("jump.log");
+    std::fs::write(&input, out).unwrap();
+    let o = replay(d.path(), &input, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("samples 400"), "{err}");
+    assert!(err.contains("lost 1000 in 1 gaps"), "{err}");
+    assert!(err.contains("checksum 0"), "{err}");
+}
+
+#[test]
+fn check_config_prints_effective_config_and_refuses_bad_ones() {
+    let d = tempfile::tempdir().unwrap();
+    let good = d.path().join("g.toml");
+    std::fs::write(&good, "[switching]\njerk_ratio = 0.3\n").unwrap();
+    let o = Command::new(bin()).arg("check-config").arg(&good).output().unwrap();
+    assert!(o.status.success());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("jerk_ratio = 0.3") && out.contains("inner = [0.985, 1.015]"), "{out}");
+    let bad = d.path().join("b.toml");
+    std::fs::write(&bad, "[switching]\ninner = [0.7, 1.3]\n").unwrap();
+    let o = Command::new(bin()).arg("check-config").arg(&bad).output().unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("switching.inner"));
+    // the shipped example is valid
+    let o = Command::new(bin()).arg("check-config").arg(concat!(env!("CARGO_MANIFEST_DIR"), "/config/gyrocomp.toml")).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn threaded_replay_writes_the_same_bytes_as_single_threaded() {
+    use gyrocomp::candump::LogWriter;
+    use gyrocomp::config::Config;
+    use gyrocomp::pipeline::Pipeline;
+    use gyrocomp::replay::{run, run_threaded, ReplaySink};
+    // a long clean log with bad lines, FD, remote, extended and error frames sprinkled in
+    let text = String::from_utf8(gentle_log(204 * 120, [0.2, 0.1, -0.3], 1_000_000)).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    for (k, extra) in [
+        (100, "(1.100000) vcan0 100#010203"),
+        (5000, "(2.000000) vcan0 100##1AABBCCDDEEFF001122"),
+        (9000, "garbage"),
+        (12000, "(3.000000) vcan0 101#R"),
+        (15000, "(4.000000) vcan0 12345678#0011223344556677"),
+        (20000, "(5.000000) vcan0 20000004#0004000000000000"),
+    ] {
+        lines.insert(k, extra.to_string());
+    }
+    let input = lines.join("\n").into_bytes();
+    let cfg = Config::parse("[estimator]\nwarmup_s = 2.0\nlearn_s = 10.0", "t").unwrap();
+    let go = |threaded: bool| {
+        let mut w = LogWriter::new(Vec::new(), "can0");
+        let mut csv = Vec::new();
+        let mut pipe = Pipeline::new(&cfg);
+        let mut sink = ReplaySink::<Vec<u8>, Vec<u8>> { log: Some(&mut w), csv: Some(&mut csv), keep: None, err: None };
+        let s = if threaded { run_threaded(&mut pipe, &input[..], &mut sink) } else { run(&mut pipe, &input[..], &mut sink) }.unwrap();
+        (w.finish().unwrap(), csv, s.render())
+    };
+    let (a, ac, asum) = go(false);
+    let (b, bc, bsum) = go(true);
+    assert!(asum.contains("(bad 1)") && asum.contains("error frames 1") && asum.contains("wrong_dlc 1") && asum.contains("unknown_id 3"), "{asum}");
+    assert_eq!(asum, bsum);
+    assert_eq!(ac, bc);
+    assert!(a == b, "output logs differ");
+    assert_eq!(a.iter().filter(|&&c| c == b'\n').count(), 4 * 204 * 120);
+}

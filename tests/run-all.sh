@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# The whole test suite, as README says: installs what the tests need when it is
+# missing (python cantools; qemu, busybox, can-utils and a Debian kernel with the
+# CAN modules for the vcan VM; debootstrap for the systemd VM), then runs
+# `cargo test --release` (unit, integration, property, vcan and systemd tests)
+# and builds the benchmarks.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+
+if ! python3 -c "import cantools" 2>/dev/null; then
+    echo "[run-all] installing python cantools"
+    python3 -m pip install --quiet --disable-pip-version-check cantools
+fi
+echo "[run-all] preparing the vcan / systemd test harness"
+bash tests/vm/prepare.sh
+
+cargo build --release --all-targets
+cargo test --release -- --test-threads=2
