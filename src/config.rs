@@ -92,7 +92,7 @@ pub enum Mode {
     /// curve anchored at the last EKF bias, bands from `[switching]`) with
     /// the guards of `[robust]`: decisions on a gyro-compensated low-passed
     /// specific force, a dwell time, a turn-rate gate, innovation gating with
-    /// a bounded lock-out, a bounded bias step, yaw fused on its own.
+    /// a bounded lock-out, tilt fused at intervals, yaw in its own filter.
     Robust,
 }
 
@@ -272,10 +272,6 @@ pub struct RobustConfig {
     /// which the angle covariance is widened to the size of the innovation,
     /// so the gate cannot lock the accelerometer out forever.
     pub lockout_s: f64,
-    /// Largest rate at which updates may move the bias, deg/s per second
-    /// per axis (one update moves it by at most this times the time since
-    /// the previous update).
-    pub max_bias_rate: f64,
     /// 1-sigma of roll/pitch from the low-passed accelerometer, deg.
     pub tilt_sigma_deg: f64,
     /// Interval between tilt updates, s (the low-passed tilt is correlated
@@ -295,7 +291,6 @@ impl Default for RobustConfig {
             turn_rate_dps: 3.0,
             gate_sigma: 3.0,
             lockout_s: 30.0,
-            max_bias_rate: 0.1,
             tilt_sigma_deg: 2.0,
             fuse_every_s: 0.5,
             blend: true,
@@ -518,7 +513,6 @@ impl Config {
         positive("robust.turn_rate_dps", r.turn_rate_dps)?;
         positive("robust.gate_sigma", r.gate_sigma)?;
         positive("robust.lockout_s", r.lockout_s)?;
-        positive("robust.max_bias_rate", r.max_bias_rate)?;
         positive("robust.tilt_sigma_deg", r.tilt_sigma_deg)?;
         non_negative("robust.fuse_every_s", r.fuse_every_s)?;
         let o = &self.output;

@@ -132,13 +132,12 @@ pub struct Estimator {
 #[derive(Clone, Debug)]
 struct Robust {
     /// Low-pass time constant (s), dwell (s), turn-rate gate (rad/s),
-    /// NIS gate, lock-out (s), bias step (rad/s), tilt variance (rad^2).
+    /// NIS gate, lock-out (s), tilt variance (rad^2).
     tau: f64,
     dwell_need: f64,
     turn_rate: f64,
     gate: f64,
     lockout: f64,
-    max_db: f64,
     r_tilt: f64,
     blend: bool,
     /// Gyro-compensated low-passed specific force, g (None until the first sample).
@@ -205,7 +204,6 @@ impl Estimator {
                 turn_rate: cfg.robust.turn_rate_dps * D2R,
                 gate: cfg.robust.gate_sigma * cfg.robust.gate_sigma,
                 lockout: cfg.robust.lockout_s,
-                max_db: cfg.robust.max_bias_rate * D2R,
                 r_tilt: (cfg.robust.tilt_sigma_deg * D2R).powi(2),
                 blend: cfg.robust.blend,
                 f_lp: None,
@@ -508,12 +506,11 @@ impl Estimator {
         if quiet && rb.dwell >= rb.dwell_need && !due {
             mode = 0;
         } else if quiet && rb.dwell >= rb.dwell_need {
-            let max_db = rb.max_db * rb.since_fuse.min(rb.fuse_every).max(dt);
             rb.since_fuse = 0.0;
             let r = Vector3::new(rb.r_tilt, rb.r_tilt, 1.0);
             if self.ekf.nis(&z, &r, false) <= rb.gate {
                 let learn = if warm { Learn::AnglesOnly } else { Learn::AnglesAndBias };
-                self.ekf.update_limited(&z, &r, false, learn, max_db);
+                self.ekf.update(&z, &r, false, learn);
                 rb.refused = 0.0;
                 mode = 0;
                 if !warm {
@@ -531,7 +528,7 @@ impl Estimator {
                     let d1 = pitch - self.ekf.att[1];
                     let v = d0 * d0 + d1 * d1;
                     self.ekf.inflate_angles(v);
-                    self.ekf.update_limited(&z, &Vector3::new(rb.r_tilt, rb.r_tilt, 1.0), false, Learn::AnglesOnly, 0.0);
+                    self.ekf.update(&z, &Vector3::new(rb.r_tilt, rb.r_tilt, 1.0), false, Learn::AnglesOnly);
                     rb.refused = 0.0;
                     mode = 0;
                 }
@@ -542,7 +539,7 @@ impl Estimator {
             let k = 1.0 / (weight * weight).max(1e-6);
             let r = Vector3::new(rb.r_tilt * k, rb.r_tilt * k, 1.0);
             if self.ekf.nis(&z, &r, false) <= rb.gate {
-                self.ekf.update_limited(&z, &r, false, Learn::AnglesOnly, rb.max_db);
+                self.ekf.update(&z, &r, false, Learn::AnglesOnly);
                 mode = 1;
             } else {
                 *fl |= flags::GATED;
