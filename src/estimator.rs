@@ -6,6 +6,8 @@
 //!   weighted blend between the bands, gyro only outside with the thermal
 //!   curve anchored at the last EKF bias; jerk criterion; warm-up exclusion;
 //!   the mean EKF bias over the learning window becomes the initial bias.
+//! - `robust` (the default): the paper's structure with the guards of
+//!   `[robust]` (see `step_robust` and README "Accuracy beyond the paper").
 //! - `startup_thermal`, `startup_average`: the paper's comparison cases 2 and
 //!   1: the gyro integrated with the bias averaged over the learning window,
 //!   with / without the thermal curve; no fusion at all.
@@ -494,7 +496,6 @@ impl Estimator {
         rb.dwell = if quiet { rb.dwell + dt } else { 0.0 };
         if s.suspect() {
             *fl |= flags::SUSPECT;
-            return 2;
         }
         let (roll, pitch) = tilt_from_accel(&[f_lp[0], f_lp[1], f_lp[2]]);
         let z = Vector3::new(roll, pitch, 0.0);
@@ -533,7 +534,7 @@ impl Estimator {
                     mode = 0;
                 }
             }
-        } else if rb.blend && band == Band::Blend && !jerk && !turning && due {
+        } else if rb.blend && band == Band::Blend && !jerk && !turning && due && !s.suspect() {
             rb.since_fuse = 0.0;
             // Angles only, noise growing as the blend weight falls; gated.
             let k = 1.0 / (weight * weight).max(1e-6);
@@ -561,7 +562,6 @@ impl Estimator {
     /// rate, update with the magnetometer heading (no yaw without one).
     fn yaw_filter(&mut self, s: &Sample, omega: &Vector3<f64>, dt: f64, freeze_bias: bool) {
         let rb = &mut self.robust;
-        // the thermal curve's change of the z bias (already applied to the EKF's bias)
         let (sr, cr) = self.ekf.att[0].sin_cos();
         let cp = self.ekf.att[1].cos().max(1e-3);
         let g = cr / cp;
