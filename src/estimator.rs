@@ -154,6 +154,8 @@ struct Robust {
     dwell: f64,
     /// Seconds of refused tilt measurements under quasi-static conditions.
     refused: f64,
+    /// Mode of the last tilt update attempt (0 fused, 1 blended, 2 refused or none).
+    held: u8,
     /// Seconds between tilt updates, and since the last one.
     fuse_every: f64,
     since_fuse: f64,
@@ -215,6 +217,7 @@ impl Estimator {
                 yaw_p: [[0.0; 2]; 2],
                 dwell: 0.0,
                 refused: 0.0,
+                held: 2,
                 fuse_every: cfg.robust.fuse_every_s,
                 since_fuse: 0.0,
             },
@@ -504,8 +507,11 @@ impl Estimator {
         // The low-passed tilt is correlated over ~tau: fuse it at intervals,
         // not every sample, so its noise is not counted many times over.
         let due = rb.since_fuse + 1e-9 >= rb.fuse_every;
-        if quiet && rb.dwell >= rb.dwell_need && !due {
-            mode = 0;
+        let blend_ok = rb.blend && band == Band::Blend && !jerk && !turning && !s.suspect();
+        if !due {
+            // between updates: the mode of the last update, while its conditions hold
+            let holds = (rb.held == 0 && quiet && rb.dwell >= rb.dwell_need) || (rb.held == 1 && blend_ok);
+            mode = if holds { rb.held } else { 2 };
         } else if quiet && rb.dwell >= rb.dwell_need {
             rb.since_fuse = 0.0;
             let r = Vector3::new(rb.r_tilt, rb.r_tilt, 1.0);
@@ -534,7 +540,7 @@ impl Estimator {
                     mode = 0;
                 }
             }
-        } else if rb.blend && band == Band::Blend && !jerk && !turning && due && !s.suspect() {
+        } else if blend_ok {
             rb.since_fuse = 0.0;
             // Angles only, noise growing as the blend weight falls; gated.
             let k = 1.0 / (weight * weight).max(1e-6);
@@ -545,6 +551,9 @@ impl Estimator {
             } else {
                 *fl |= flags::GATED;
             }
+        }
+        if due {
+            rb.held = mode;
         }
         // Yaw: the magnetometer is not disturbed by acceleration, but its
         // heading is computed with the filter's own roll and pitch; fused
