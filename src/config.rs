@@ -92,7 +92,7 @@ pub enum Mode {
     /// curve anchored at the last EKF bias, bands from `[switching]`) with
     /// the guards of `[robust]`: decisions on a gyro-compensated low-passed
     /// specific force, a dwell time, a turn-rate gate, innovation gating with
-    /// a bounded lock-out, a bounded bias step, yaw fused on its own.
+    /// a bounded lock-out, tilt fused at intervals, yaw in its own filter.
     Robust,
 }
 
@@ -272,14 +272,12 @@ pub struct RobustConfig {
     /// which the angle covariance is widened to the size of the innovation,
     /// so the gate cannot lock the accelerometer out forever.
     pub lockout_s: f64,
-    /// Largest change of the bias one update may make, deg/s per axis.
-    pub max_bias_step: f64,
     /// 1-sigma of roll/pitch from the low-passed accelerometer, deg.
     pub tilt_sigma_deg: f64,
-    /// Time constant with which yaw follows the magnetometer heading, s
-    /// (a PI loop outside the EKF covariance; the z bias learns from it when
-    /// quasi-static).
-    pub yaw_tau_s: f64,
+    /// Interval between tilt updates, s (the low-passed tilt is correlated
+    /// over `accel_tau_s`; fusing it every sample would count its noise many
+    /// times over). 0 = every sample.
+    pub fuse_every_s: f64,
     /// Fuse the tilt in the blend band (angles only, noise growing as the
     /// blend weight falls, gated).
     pub blend: bool,
@@ -290,12 +288,11 @@ impl Default for RobustConfig {
         RobustConfig {
             accel_tau_s: 1.0,
             dwell_s: 2.0,
-            turn_rate_dps: 1.0,
+            turn_rate_dps: 3.0,
             gate_sigma: 3.0,
             lockout_s: 30.0,
-            max_bias_step: 0.0005,
-            tilt_sigma_deg: 0.3,
-            yaw_tau_s: 10.0,
+            tilt_sigma_deg: 2.0,
+            fuse_every_s: 0.5,
             blend: true,
         }
     }
@@ -516,9 +513,8 @@ impl Config {
         positive("robust.turn_rate_dps", r.turn_rate_dps)?;
         positive("robust.gate_sigma", r.gate_sigma)?;
         positive("robust.lockout_s", r.lockout_s)?;
-        positive("robust.max_bias_step", r.max_bias_step)?;
         positive("robust.tilt_sigma_deg", r.tilt_sigma_deg)?;
-        positive("robust.yaw_tau_s", r.yaw_tau_s)?;
+        non_negative("robust.fuse_every_s", r.fuse_every_s)?;
         let o = &self.output;
         let oids = [o.rate_id, o.attitude_id, o.bias_id, o.status_id];
         for (k, v) in ["output.rate_id", "output.attitude_id", "output.bias_id", "output.status_id"].iter().zip(oids) {

@@ -141,20 +141,12 @@ impl Ekf {
         self.normalise_angles();
     }
 
-    /// Measurement update with `z = [roll, pitch, yaw]` (rad) and diagonal
-    /// noise variances `r`. With `yaw == false` only roll and pitch are used.
-    /// Returns the innovation (rad) and the normalised innovation squared.
-    pub fn update(&mut self, z: &Vector3<f64>, r: &Vector3<f64>, yaw: bool, learn: Learn) -> (Vector3<f64>, f64) {
-        self.update_limited(z, r, yaw, learn, f64::INFINITY)
-    }
-
     /// Normalised innovation squared of a roll/pitch(/yaw) measurement,
     /// without updating (for gating).
     pub fn nis(&self, z: &Vector3<f64>, r: &Vector3<f64>, yaw: bool) -> f64 {
-        let n = if yaw { 3 } else { 2 };
         let nu = Vector3::new(wrap_pi(z[0] - self.att[0]), z[1] - self.att[1], wrap_pi(z[2] - self.att[2]));
-        let mut s = self.paa + Matrix3::from_diagonal(r);
-        if n == 2 {
+        let s = symmetric(&(self.paa + Matrix3::from_diagonal(r)));
+        if !yaw {
             let s2 = nalgebra::Matrix2::new(s[(0, 0)], s[(0, 1)], s[(1, 0)], s[(1, 1)]);
             let v = nalgebra::Vector2::new(nu[0], nu[1]);
             return match s2.try_inverse() {
@@ -162,46 +154,16 @@ impl Ekf {
                 None => f64::INFINITY,
             };
         }
-        s = symmetric(&s);
         match s.try_inverse() {
             Some(si) => (nu.transpose() * si * nu)[0],
             None => f64::INFINITY,
         }
     }
 
-    /// Scalar yaw update with noise variance `r` that moves only the yaw
-    /// (and, with `Learn::AnglesAndBias`, the z bias): the heading is
-    /// computed with the filter's own roll and pitch, so letting it pull roll
-    /// and pitch through their correlation with yaw feeds their error back.
-    /// The covariance follows in Joseph form for that gain. The bias moves by
-    /// at most `max_db` (rad/s). Returns the normalised innovation squared.
-    pub fn update_yaw(&mut self, z: f64, r: f64, learn: Learn, max_db: f64) -> f64 {
-        let nu = wrap_pi(z - self.att[2]);
-        let p = self.covariance();
-        let s = p[(2, 2)] + r;
-        if !(s > 0.0) {
-            return f64::INFINITY;
-        }
-        let mut k = Vector6::<f64>::zeros();
-        k[2] = p[(2, 2)] / s;
-        if learn == Learn::AnglesAndBias {
-            k[5] = p[(5, 2)] / s;
-        }
-        self.att[2] += k[2] * nu;
-        self.bias[2] += (k[5] * nu).clamp(-max_db, max_db);
-        let mut ikh = Matrix6::<f64>::identity();
-        ikh[(2, 2)] -= k[2];
-        ikh[(5, 2)] -= k[5];
-        let pn: Matrix6<f64> = ikh * p * ikh.transpose() + k * k.transpose() * r;
-        self.paa = symmetric(&pn.fixed_view::<3, 3>(0, 0).into_owned());
-        self.pab = pn.fixed_view::<3, 3>(0, 3).into_owned();
-        self.pbb = symmetric(&pn.fixed_view::<3, 3>(3, 3).into_owned());
-        self.normalise_angles();
-        nu * nu / s
-    }
-
-    /// `update` with the bias change of one update bounded by `max_db` (rad/s) per axis.
-    pub fn update_limited(&mut self, z: &Vector3<f64>, r: &Vector3<f64>, yaw: bool, learn: Learn, max_db: f64) -> (Vector3<f64>, f64) {
+    /// Measurement update with `z = [roll, pitch, yaw]` (rad) and diagonal
+    /// noise variances `r`. With `yaw == false` only roll and pitch are used.
+    /// Returns the innovation (rad) and the normalised innovation squared.
+    pub fn update(&mut self, z: &Vector3<f64>, r: &Vector3<f64>, yaw: bool, learn: Learn) -> (Vector3<f64>, f64) {
         let mut nu = Vector3::new(wrap_pi(z[0] - self.att[0]), z[1] - self.att[1], wrap_pi(z[2] - self.att[2]));
         let mut s = self.paa + Matrix3::from_diagonal(r);
         // P H^T, split into the angle rows and the bias rows.
@@ -235,7 +197,7 @@ impl Ekf {
         match learn {
             Learn::AnglesAndBias => {
                 let kb = pb * si;
-                self.bias += (kb * nu).map(|d| d.clamp(-max_db, max_db));
+                self.bias += kb * nu;
                 let kbh = kb * h;
                 let apaa = a * self.paa;
                 let paa = apaa * a.transpose() + kar * ka.transpose();

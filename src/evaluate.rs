@@ -121,6 +121,8 @@ pub struct Metrics {
     /// Seconds in fusion, blend, gyro only.
     pub mode_seconds: [f64; 3],
     pub samples: usize,
+    /// Time of the largest roll or pitch error, s.
+    pub t_max_tilt: f64,
 }
 
 impl Metrics {
@@ -147,6 +149,9 @@ pub fn score(name: &str, data: &RunData, est: &[Estimate], mode_seconds: [f64; 3
             continue;
         }
         let err = [wrap180(e.roll - t.att[0]), e.pitch - t.att[1], wrap180(e.yaw - t.att[2])];
+        if err[0].abs().max(err[1].abs()) > m.tilt_max() {
+            m.t_max_tilt = t.t;
+        }
         for i in 0..3 {
             m.max_err[i] = m.max_err[i].max(err[i].abs());
             sq[i] += err[i] * err[i];
@@ -353,7 +358,10 @@ pub fn evaluate_dir(cfg: &Config, dir: &Path, o: &EvalOptions) -> Result<String,
 #[derive(Clone, Debug, Serialize)]
 pub struct SeedRow {
     pub seed: u64,
+    /// Scored from `score_from`.
     pub cases: Vec<Metrics>,
+    /// Scored over the manoeuvres only (the oracle floor's window).
+    pub manoeuvres: Vec<Metrics>,
     pub oracle: Metrics,
 }
 
@@ -379,8 +387,8 @@ pub fn evaluate_seeds(base: &Config, sim: &SimOptions, seeds: std::ops::RangeInc
     let case_list = cases(base, o.ablation);
     let mut out = String::new();
     let head = format!(
-        "{:>5} {:<22} {:>8} {:>8} {:>8} {:>8} | {:>8} {:>8}\n",
-        "seed", "case", "roll_max", "pitch_mx", "yaw_rms", "bias_rms", "orc_roll", "orc_pitc"
+        "{:>5} {:<22} {:>8} {:>8} {:>8} {:>8} {:>7} | {:>8} {:>8} {:>8} | {:>8} {:>8}\n",
+        "seed", "case", "roll_max", "pitch_mx", "yaw_rms", "bias_rms", "t_max", "m_roll", "m_pitch", "m_yawrms", "orc_roll", "orc_pitc"
     );
     eprint!("{head}");
     out += &head;
@@ -389,6 +397,7 @@ pub fn evaluate_seeds(base: &Config, sim: &SimOptions, seeds: std::ops::RangeInc
         so.seed = seed;
         let data = RunData::simulate(&so)?;
         let mut ms = Vec::new();
+        let mut man = Vec::new();
         let mut orc = None;
         for (name, c) in &case_list {
             let mut c = c.clone();
@@ -400,18 +409,30 @@ pub fn evaluate_seeds(base: &Config, sim: &SimOptions, seeds: std::ops::RangeInc
                 orc = Some(oracle(&data, &est, data.info.manoeuvre_start_s).0);
             }
             ms.push(score(name, &data, &est, mode_s, o.score_from));
+            man.push(score(name, &data, &est, mode_s, data.info.manoeuvre_start_s));
         }
         let orc = orc.ok_or("no case")?;
-        for m in &ms {
+        for (m, mm) in ms.iter().zip(&man) {
             let brms = (m.bias_rms.iter().map(|b| b * b).sum::<f64>() / 3.0).sqrt();
             let line = format!(
-                "{:>5} {:<22} {:>8.3} {:>8.3} {:>8.3} {:>8.5} | {:>8.3} {:>8.3}\n",
-                seed, m.name, m.max_err[0], m.max_err[1], m.rms_err[2], brms, orc.max_err[0], orc.max_err[1]
+                "{:>5} {:<22} {:>8.3} {:>8.3} {:>8.3} {:>8.5} {:>7.1} | {:>8.3} {:>8.3} {:>8.3} | {:>8.3} {:>8.3}\n",
+                seed,
+                m.name,
+                m.max_err[0],
+                m.max_err[1],
+                m.rms_err[2],
+                brms,
+                m.t_max_tilt,
+                mm.max_err[0],
+                mm.max_err[1],
+                mm.rms_err[2],
+                orc.max_err[0],
+                orc.max_err[1]
             );
             out += &line;
             eprint!("[{}/{}] {line}", i + 1, list.len());
         }
-        rows.push(SeedRow { seed, cases: ms, oracle: orc });
+        rows.push(SeedRow { seed, cases: ms, manoeuvres: man, oracle: orc });
     }
     let orc_med = median(&rows.iter().map(|r| r.oracle.tilt_max()).collect::<Vec<_>>());
     out += &format!(
@@ -423,30 +444,34 @@ pub fn evaluate_seeds(base: &Config, sim: &SimOptions, seeds: std::ops::RangeInc
         o.score_from,
         orc_med
     );
-    out += &format!(
-        "{:<22} {:>9} {:>10} {:>10} {:>9} {:>12} {:>11} {:>10}\n",
-        "case", "worst_rol", "worst_pitc", "median_max", "ratio_orc", "worst_yawrms", "seeds<=2deg", "worst_seed"
-    );
-    for (ci, (name, _)) in case_list.iter().enumerate() {
-        let per: Vec<&Metrics> = rows.iter().map(|r| &r.cases[ci]).collect();
-        let wr = per.iter().map(|m| m.max_err[0]).fold(0.0, f64::max);
-        let wp = per.iter().map(|m| m.max_err[1]).fold(0.0, f64::max);
-        let med = median(&per.iter().map(|m| m.tilt_max()).collect::<Vec<_>>());
-        let wy = per.iter().map(|m| m.rms_err[2]).fold(0.0, f64::max);
-        let ok = per.iter().filter(|m| m.tilt_max() <= 2.0).count();
-        let worst = rows.iter().max_by(|a, b| a.cases[ci].tilt_max().total_cmp(&b.cases[ci].tilt_max())).map(|r| r.seed).unwrap_or(0);
+    for (title, man) in [(format!("scored from {:.0} s", o.score_from), false), ("manoeuvres only (oracle window)".to_string(), true)] {
+        out += &format!("-- {title}\n");
         out += &format!(
-            "{:<22} {:>9.3} {:>10.3} {:>10.3} {:>9.2} {:>12.3} {:>8}/{:<2} {:>10}\n",
-            name,
-            wr,
-            wp,
-            med,
-            med / orc_med,
-            wy,
-            ok,
-            rows.len(),
-            worst
+            "{:<22} {:>9} {:>10} {:>10} {:>9} {:>12} {:>11} {:>10}\n",
+            "case", "worst_rol", "worst_pitc", "median_max", "ratio_orc", "worst_yawrms", "seeds<=2deg", "worst_seed"
         );
+        for (ci, (name, _)) in case_list.iter().enumerate() {
+            let pick = |r: &SeedRow| if man { r.manoeuvres[ci].clone() } else { r.cases[ci].clone() };
+            let per: Vec<Metrics> = rows.iter().map(pick).collect();
+            let wr = per.iter().map(|m| m.max_err[0]).fold(0.0, f64::max);
+            let wp = per.iter().map(|m| m.max_err[1]).fold(0.0, f64::max);
+            let med = median(&per.iter().map(|m| m.tilt_max()).collect::<Vec<_>>());
+            let wy = per.iter().map(|m| m.rms_err[2]).fold(0.0, f64::max);
+            let ok = per.iter().filter(|m| m.tilt_max() <= 2.0).count();
+            let worst = rows.iter().zip(&per).max_by(|a, b| a.1.tilt_max().total_cmp(&b.1.tilt_max())).map(|r| r.0.seed).unwrap_or(0);
+            out += &format!(
+                "{:<22} {:>9.3} {:>10.3} {:>10.3} {:>9.2} {:>12.3} {:>8}/{:<2} {:>10}\n",
+                name,
+                wr,
+                wp,
+                med,
+                med / orc_med,
+                wy,
+                ok,
+                rows.len(),
+                worst
+            );
+        }
     }
     if let Some(rd) = &o.out {
         std::fs::create_dir_all(rd).map_err(|e| format!("{}: {e}", rd.display()))?;

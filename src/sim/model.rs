@@ -428,8 +428,10 @@ impl NoiseModel {
     }
 }
 
-/// `[vibration]`: engine / road vibration, a real linear oscillation of the
-/// sensor (it is in the truth specific force; its displacement is sub-mm).
+/// `[vibration]`: engine / road vibration, a linear oscillation of the
+/// sensor mount (sub-mm). It is added to the specific force the sensor sees
+/// (the accelerometer and the g-sensitivity input), not to `truth.csv`, whose
+/// specific force is the vehicle's rigid-body motion.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct VibrationModel {
