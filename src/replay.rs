@@ -190,14 +190,67 @@ fn parse_into<R: Read>(input: R, tx: std::sync::mpsc::SyncSender<Vec<Item>>, bac
     Ok(())
 }
 
-/// `run` on two threads: this one parses, a second steps the pipeline and
-/// writes. The order of frames is kept, so the output is the same bytes as
-/// `run` gives (a test checks it).
+/// What the pipeline stage hands to the sink stage.
+enum Out {
+    Output(Estimate, [OutFrame; 4]),
+    Dropped(u64, crate::adis::Drop),
+}
+
+/// Collects the pipeline's output into batches for the sink thread.
+struct BatchSink {
+    cur: Vec<Out>,
+    tx: std::sync::mpsc::SyncSender<Vec<Out>>,
+    back: std::sync::mpsc::Receiver<Vec<Out>>,
+}
+
+impl BatchSink {
+    fn push(&mut self, o: Out) {
+        self.cur.push(o);
+        if self.cur.len() == BATCH {
+            self.flush();
+        }
+    }
+    fn flush(&mut self) {
+        if self.cur.is_empty() {
+            return;
+        }
+        let next = self.back.try_recv().unwrap_or_else(|_| Vec::with_capacity(BATCH));
+        let _ = self.tx.send(std::mem::replace(&mut self.cur, next));
+    }
+}
+
+impl Sink for BatchSink {
+    fn output(&mut self, est: &Estimate, frames: &[OutFrame; 4]) {
+        self.push(Out::Output(*est, *frames));
+    }
+    fn dropped(&mut self, t_us: u64, cause: crate::adis::Drop) {
+        self.push(Out::Dropped(t_us, cause));
+    }
+}
+
+/// `run` on three threads: this one parses, a second steps the pipeline, a
+/// third feeds the sink (formats and writes). Every stage keeps the order, so
+/// the output is the same bytes as `run` gives (a test checks it).
 pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: R, sink: &mut S) -> io::Result<Summary> {
-    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Item>>(4);
-    let (back_tx, back_rx) = std::sync::mpsc::sync_channel::<Vec<Item>>(8);
+    use std::sync::mpsc::sync_channel;
+    let (tx, rx) = sync_channel::<Vec<Item>>(4);
+    let (back_tx, back_rx) = sync_channel::<Vec<Item>>(8);
+    let (otx, orx) = sync_channel::<Vec<Out>>(4);
+    let (oback_tx, oback_rx) = sync_channel::<Vec<Out>>(8);
     std::thread::scope(|sc| {
+        let writer = sc.spawn(move || {
+            for mut batch in orx {
+                for o in batch.drain(..) {
+                    match o {
+                        Out::Output(e, f) => sink.output(&e, &f),
+                        Out::Dropped(t, d) => sink.dropped(t, d),
+                    }
+                }
+                let _ = oback_tx.try_send(batch);
+            }
+        });
         let worker = sc.spawn(move || {
+            let mut out = BatchSink { cur: Vec::with_capacity(BATCH), tx: otx, back: oback_rx };
             let mut sum = Summary::default();
             for mut batch in rx {
                 for it in batch.drain(..) {
@@ -207,7 +260,7 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
                             // Only classic payloads (<= 8 bytes) matter: FD frames are
                             // dropped as unknown by the assembler whatever they carry.
                             let n = (len as usize).min(8);
-                            pipe.push(t_us, RawFrame { id, extended, remote, fd, data: &data[..n] }, sink)
+                            pipe.push(t_us, RawFrame { id, extended, remote, fd, data: &data[..n] }, &mut out)
                         }
                         Item::ErrorFrame => sum.error_frames += 1,
                         Item::Bad { line_no, err } => {
@@ -220,6 +273,7 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
                 }
                 let _ = back_tx.try_send(batch);
             }
+            out.flush();
             sum.input = *pipe.counters();
             sum.mode_seconds = pipe.mode_seconds();
             sum.mode_samples = pipe.mode_samples;
@@ -227,6 +281,7 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
         });
         let parsed = parse_into(input, tx, back_rx);
         let sum = worker.join().map_err(|_| io::Error::other("replay worker panicked"))?;
+        writer.join().map_err(|_| io::Error::other("replay writer panicked"))?;
         parsed.map(|_| sum)
     })
 }
