@@ -48,22 +48,25 @@ fn bench(c: &mut Criterion) {
 
     let mut g = c.benchmark_group("estimator");
     g.throughput(Throughput::Elements(1));
-    let mut est = Estimator::new(&cfg);
-    // steady state: past warm-up and learning
-    for s in &ss[..20_000] {
-        est.step(s);
+    let paper = Config::parse("[estimator]\nmode = \"paper\"\nwarmup_s = 1.0\nlearn_s = 5.0\n[thermal]\np1 = [0.002, 0.0044, 0.0192]", "bench").unwrap();
+    for (name, cfg) in [("step_default_robust", &cfg), ("step_paper", &paper)] {
+        let mut est = Estimator::new(cfg);
+        // steady state: past warm-up and learning
+        for s in &ss[..20_000] {
+            est.step(s);
+        }
+        let mut i = 20_000;
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                let e = est.step(black_box(&ss[i]));
+                i += 1;
+                if i == ss.len() {
+                    i = 20_000;
+                }
+                e
+            })
+        });
     }
-    let mut i = 20_000;
-    g.bench_function("step", |b| {
-        b.iter(|| {
-            let e = est.step(black_box(&ss[i]));
-            i += 1;
-            if i == ss.len() {
-                i = 20_000;
-            }
-            e
-        })
-    });
     g.finish();
 
     let frames = raw_samples(100_000);
