@@ -60,6 +60,16 @@ sleep 1
 journalctl -u gyrocomp.service --no-pager -o cat _PID="$P2" | grep -q "config reloaded" || fail "SIGHUP did not reload"
 [ "$(systemctl is-active gyrocomp.service)" = active ] || fail "not active after reload"
 echo "CHECK: reloaded"
+# a bad config on reload is refused and logged; the service keeps running on the old one
+cp /etc/gyrocomp/gyrocomp.toml /tmp/good.toml
+printf '[switching]\ninner = [1.2, 0.9]\n' >> /etc/gyrocomp/gyrocomp.toml
+systemctl reload gyrocomp.service || fail "reload (bad config)"
+sleep 1
+journalctl -u gyrocomp.service --no-pager -o cat _PID="$P2" | grep -q "reload refused" || fail "bad config not refused"
+[ "$(systemctl is-active gyrocomp.service)" = active ] || fail "not active after a refused reload"
+[ "$(systemctl show -p MainPID --value gyrocomp.service)" = "$P2" ] || fail "restarted on a refused reload"
+cp /tmp/good.toml /etc/gyrocomp/gyrocomp.toml
+echo "CHECK: bad reload refused, old config kept"
 T0=$(date +%s%N)
 systemctl stop gyrocomp.service
 T1=$(date +%s%N)
@@ -85,7 +95,7 @@ echo "CHECK: all ok"
         .expect("bash tests/vm/systemd.sh");
     let text = format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
     assert!(o.status.success(), "systemd VM run failed:\n{text}");
-    for want in ["CHECK: active via READY=1", "CHECK: state saved", "CHECK: watchdog timeout logged", "CHECK: state loaded after restart", "CHECK: reloaded", "CHECK: all ok"] {
+    for want in ["CHECK: active via READY=1", "CHECK: state saved", "CHECK: watchdog timeout logged", "CHECK: state loaded after restart", "CHECK: reloaded", "CHECK: bad reload refused, old config kept", "CHECK: all ok"] {
         assert!(text.contains(want), "missing {want:?}:\n{text}");
     }
 }
