@@ -46,8 +46,8 @@
 //! 6. **Warnings**: range covered (over the bins used) under 10 deg C, runs not
 //!    static, transients at the `TAU_MAX_S` limit, counter restarts in a log.
 
-use crate::adis::{Assembler, Push, RawFrame, RawSample};
-use crate::candump::{parse_line, LineReader, LogWriter};
+use crate::adis::{Assembler, RawSample};
+use crate::candump::LogWriter;
 use crate::config::{Config, ThermalConfig};
 use crate::thermal::Thermal;
 use nalgebra::{DMatrix, DVector};
@@ -164,43 +164,12 @@ pub fn read_run(path: &Path, cfg: &Config) -> Result<Run, CalError> {
 pub fn read_run_from<R: io::Read>(input: R, name: &str, cfg: &Config) -> Result<Run, CalError> {
     let bad = |msg: String| CalError::Input { path: name.to_string(), msg };
     let mut asm = Assembler::new(cfg.profile(), cfg.input.ids);
-    let mut rd = LineReader::new(input);
     let mut run = Run { name: name.to_string(), ..Default::default() };
-    let mut first_bad: Option<(u64, String)> = None;
     let mut t_first: Option<u64> = None;
     let mut acc = BinAcc::default();
-    loop {
-        let line = match rd.next_line() {
-            Ok(Some(l)) => l,
-            Ok(None) => break,
-            Err(e) => return Err(bad(format!("read error after line {}: {e}", rd.line_no))),
-        };
-        let parsed = match line {
-            Ok([]) => continue,
-            Ok(l) => parse_line(l),
-            Err(e) => Err(e),
-        };
-        run.lines += 1;
-        let f = match parsed {
-            Ok(f) => f,
-            Err(e) => {
-                run.bad_lines += 1;
-                if first_bad.is_none() {
-                    first_bad = Some((rd.line_no, e.to_string()));
-                }
-                continue;
-            }
-        };
-        if f.error {
-            continue;
-        }
-        let raw = RawFrame { id: f.id, extended: f.extended, remote: f.remote, fd: f.fd, data: f.payload() };
-        let s = match asm.push(f.t_us, raw) {
-            Push::Sample(s) => s,
-            _ => continue,
-        };
+    let stats = crate::replay::for_each_sample(input, &mut asm, |s| {
         if s.suspect() {
-            continue;
+            return;
         }
         let t0 = *t_first.get_or_insert(s.t_us);
         let t = s.t_us as f64 * 1e-6 - t0 as f64 * 1e-6;
@@ -221,7 +190,11 @@ pub fn read_run_from<R: io::Read>(input: R, name: &str, cfg: &Config) -> Result<
             acc.g2[i] += s.gyro[i] * s.gyro[i];
             acc.a[i] += s.accel[i];
         }
-    }
+    })
+    .map_err(|(line, e)| bad(format!("read error after line {line}: {e}")))?;
+    run.lines = stats.lines;
+    run.bad_lines = stats.bad_lines;
+    let first_bad = stats.first_bad.map(|(l, e)| (l, e.to_string()));
     if let Some(b) = acc.take() {
         run.bins.push(b);
     }

@@ -66,8 +66,7 @@
 //! --model`), `report.md`, `residual.svg` (before/after) and one
 //! `finding_N_<effect>_<axis>.svg` per finding (the localisation that named it).
 
-use crate::adis::{builtin_profile, Assembler, InputIds, Profile, Push, RawFrame};
-use crate::candump::{parse_line, LineReader};
+use crate::adis::{builtin_profile, Assembler, InputIds, Profile};
 use crate::sim::model::{
     Effect, GSensitivity, GyroInput, GyroModel, Misalignment, ScaleFactor, SensorModel, ThermalLinear, ThermalQuadratic,
     ThermalRate, TimeDelay, TurnOnBias, WarmupTransient,
@@ -179,48 +178,20 @@ fn read_meas_csv(path: &Path, bytes: &[u8]) -> Result<Vec<MeasRow>, String> {
 
 fn read_meas_log(path: &Path, bytes: &[u8], profile: &Profile) -> Result<Vec<MeasRow>, String> {
     let mut asm = Assembler::new(profile.clone(), InputIds::DEFAULT);
-    let mut rd = LineReader::new(bytes);
-    let (mut lines, mut bad) = (0u64, 0u64);
-    let mut first_bad: Option<(u64, String)> = None;
     let mut out = Vec::new();
     let mut t_first: Option<u64> = None;
-    loop {
-        let line = match rd.next_line() {
-            Ok(Some(l)) => l,
-            Ok(None) => break,
-            Err(e) => return Err(format!("{}: read error after line {}: {e}", path.display(), rd.line_no)),
-        };
-        let parsed = match line {
-            Ok([]) => continue,
-            Ok(l) => parse_line(l),
-            Err(e) => Err(e),
-        };
-        lines += 1;
-        let f = match parsed {
-            Ok(f) => f,
-            Err(e) => {
-                bad += 1;
-                if first_bad.is_none() {
-                    first_bad = Some((rd.line_no, e.to_string()));
-                }
-                continue;
-            }
-        };
-        if f.error {
-            continue;
+    let stats = crate::replay::for_each_sample(bytes, &mut asm, |s| {
+        if s.suspect() {
+            return;
         }
-        let raw = RawFrame { id: f.id, extended: f.extended, remote: f.remote, fd: f.fd, data: f.payload() };
-        if let Push::Sample(s) = asm.push(f.t_us, raw) {
-            if s.suspect() {
-                continue;
-            }
-            let t0 = *t_first.get_or_insert(s.t_us);
-            if s.t_us < t0 {
-                continue;
-            }
+        let t0 = *t_first.get_or_insert(s.t_us);
+        if s.t_us >= t0 {
             out.push(MeasRow { t: (s.t_us - t0) as f64 * 1e-6, gyro: s.gyro, temp: s.temp });
         }
-    }
+    })
+    .map_err(|(line, e)| format!("{}: read error after line {line}: {e}", path.display()))?;
+    let (lines, bad) = (stats.lines, stats.bad_lines);
+    let first_bad = stats.first_bad.map(|(l, e)| (l, e.to_string()));
     if let Some((no, e)) = &first_bad {
         if bad * 100 > lines || out.is_empty() {
             return Err(format!(

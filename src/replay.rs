@@ -286,6 +286,58 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
     })
 }
 
+/// What reading a log into samples saw.
+#[derive(Clone, Debug, Default)]
+pub struct LogStats {
+    /// Non-empty lines.
+    pub lines: u64,
+    /// Lines that are not candump lines.
+    pub bad_lines: u64,
+    /// The first bad line: (line number, what is wrong).
+    pub first_bad: Option<(u64, LineError)>,
+}
+
+/// Read a candump log through `asm`, calling `on_sample` for every complete
+/// sample, in order; error frames are skipped, bad lines counted. The one
+/// reading path of the offline tools (`calibrate`, `gap`). An I/O error comes
+/// back with the number of the last line read.
+pub fn for_each_sample<R: Read>(
+    input: R,
+    asm: &mut crate::adis::Assembler,
+    mut on_sample: impl FnMut(&crate::adis::Sample),
+) -> Result<LogStats, (u64, io::Error)> {
+    let mut rd = LineReader::new(input);
+    let mut st = LogStats::default();
+    loop {
+        let line = match rd.next_line() {
+            Ok(Some(l)) => l,
+            Ok(None) => return Ok(st),
+            Err(e) => return Err((rd.line_no, e)),
+        };
+        let parsed = match line {
+            Ok([]) => continue,
+            Ok(l) => parse_line(l),
+            Err(e) => Err(e),
+        };
+        st.lines += 1;
+        match parsed {
+            Ok(f) if f.error => {}
+            Ok(f) => {
+                let raw = RawFrame { id: f.id, extended: f.extended, remote: f.remote, fd: f.fd, data: f.payload() };
+                if let crate::adis::Push::Sample(s) = asm.push(f.t_us, raw) {
+                    on_sample(&s);
+                }
+            }
+            Err(e) => {
+                st.bad_lines += 1;
+                if st.first_bad.is_none() {
+                    st.first_bad = Some((rd.line_no, e));
+                }
+            }
+        }
+    }
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
     #[error("cannot open input {path}: {source}")]
