@@ -228,9 +228,32 @@ impl Ekf {
         self.att[2] = wrap_pi(self.att[2]);
     }
 
+    /// The six state values are finite (what reaches the bus). A non-finite
+    /// covariance reaches the state at the next update, so checking the state
+    /// every step catches it one step later at the latest.
+    #[inline]
+    pub fn state_is_finite(&self) -> bool {
+        let mut ok = true;
+        for v in self.att.iter().chain(self.bias.iter()) {
+            ok &= v.is_finite();
+        }
+        ok
+    }
+
+    /// Every value of the state and covariance is finite. A NaN or an
+    /// infinity anywhere makes the plain sum non-finite, so one pass of adds
+    /// (which the compiler vectorises) answers it.
     pub fn is_finite(&self) -> bool {
-        self.att.iter().chain(self.bias.iter()).all(|v| v.is_finite())
-            && self.paa.iter().chain(self.pab.iter()).chain(self.pbb.iter()).all(|v| v.is_finite())
+        let mut s = 0.0;
+        for v in self.att.iter().chain(self.bias.iter()) {
+            s += *v;
+        }
+        for m in [&self.paa, &self.pab, &self.pbb] {
+            for v in m.as_slice() {
+                s += *v;
+            }
+        }
+        s.is_finite()
     }
 }
 
@@ -363,6 +386,25 @@ mod tests {
         let psi = 30f64.to_radians();
         let h = heading_from_mag(&[0.2 * psi.cos(), -0.2 * psi.sin(), 0.4], 0.0, 0.0);
         assert!((h - psi).abs() < 1e-12);
+    }
+
+    #[test]
+    fn is_finite_sees_any_nan_or_infinity() {
+        let e = Ekf::new(Vector3::new(0.1, 0.2, 0.3), Vector3::zeros(), 0.1, 0.01);
+        assert!(e.is_finite());
+        for k in 0..33 {
+            for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                let mut f = e.clone();
+                match k {
+                    0..=2 => f.att[k] = bad,
+                    3..=5 => f.bias[k - 3] = bad,
+                    6..=14 => f.paa[k - 6] = bad,
+                    15..=23 => f.pab[k - 15] = bad,
+                    _ => f.pbb[k - 24] = bad,
+                }
+                assert!(!f.is_finite(), "value {k} = {bad}");
+            }
+        }
     }
 
     #[test]

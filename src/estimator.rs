@@ -438,7 +438,7 @@ impl Estimator {
             }
         }
 
-        if !self.ekf.is_finite() {
+        if !self.ekf.state_is_finite() {
             // Cannot happen with finite input; never let a NaN reach the bus.
             self.started = false;
             self.start(s);

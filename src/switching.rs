@@ -146,9 +146,9 @@ impl Switching {
             let d = (self.sum_new[k] - self.sum_old[k]) / hf;
             d2 += d * d;
         }
-        let slope = d2.sqrt() / (hf * self.dt);
-        let mean = self.sum_mag / n as f64;
-        slope > self.jerk_ratio * mean
+        // slope = sqrt(d2) / (hf dt) > jerk_ratio * mean, compared squared (no sqrt)
+        let limit = self.jerk_ratio * (self.sum_mag / n as f64) * hf * self.dt;
+        d2 > limit * limit
     }
 
     /// Recompute the running sums exactly (bounds floating-point drift).
