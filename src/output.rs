@@ -34,6 +34,12 @@ pub struct StatusCounters {
     pub lost: u64,
 }
 
+impl From<&crate::adis::InputCounters> for StatusCounters {
+    fn from(c: &crate::adis::InputCounters) -> Self {
+        StatusCounters { errors: c.errors(), lost: c.lost }
+    }
+}
+
 /// Scale, round to nearest, saturate. Returns (raw, saturated).
 #[inline]
 fn q16(v: f64, scale: f64) -> (i16, bool) {

@@ -56,8 +56,7 @@ impl Pipeline {
             Push::Sample(s) => {
                 let est = self.estimator.step(&s);
                 self.mode_samples[(est.mode as usize).min(2)] += 1;
-                let c = &self.assembler.counters;
-                let sc = StatusCounters { errors: c.errors(), lost: c.lost };
+                let sc = StatusCounters::from(&self.assembler.counters);
                 let frames = encode(&est, &sc, &self.ids, self.extra_flags);
                 sink.output(&est, &frames);
             }

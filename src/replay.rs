@@ -35,6 +35,21 @@ pub struct Summary {
 }
 
 impl Summary {
+    /// Count a bad line; keep the first few for the report.
+    fn bad_line(&mut self, line_no: u64, err: LineError) {
+        self.bad_lines += 1;
+        if self.bad_examples.len() < REPORT_BAD_LINES as usize {
+            self.bad_examples.push((line_no, err));
+        }
+    }
+
+    /// Take the pipeline's counters and time per mode at the end of a run.
+    fn finish(&mut self, pipe: &Pipeline) {
+        self.input = *pipe.counters();
+        self.mode_seconds = pipe.mode_seconds();
+        self.mode_samples = pipe.mode_samples;
+    }
+
     /// The human summary printed to stderr.
     pub fn render(&self) -> String {
         let c = &self.input;
@@ -133,17 +148,10 @@ pub fn run<R: Read, S: Sink>(pipe: &mut Pipeline, input: R, sink: &mut S) -> io:
                 RawFrame { id: f.id, extended: f.extended, remote: f.remote, fd: f.fd, data: f.payload() },
                 sink,
             ),
-            Err(e) => {
-                sum.bad_lines += 1;
-                if sum.bad_examples.len() < REPORT_BAD_LINES as usize {
-                    sum.bad_examples.push((rd.line_no, e));
-                }
-            }
+            Err(e) => sum.bad_line(rd.line_no, e),
         }
     }
-    sum.input = *pipe.counters();
-    sum.mode_seconds = pipe.mode_seconds();
-    sum.mode_samples = pipe.mode_samples;
+    sum.finish(pipe);
     Ok(sum)
 }
 
@@ -263,20 +271,13 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
                             pipe.push(t_us, RawFrame { id, extended, remote, fd, data: &data[..n] }, &mut out)
                         }
                         Item::ErrorFrame => sum.error_frames += 1,
-                        Item::Bad { line_no, err } => {
-                            sum.bad_lines += 1;
-                            if sum.bad_examples.len() < REPORT_BAD_LINES as usize {
-                                sum.bad_examples.push((line_no, err));
-                            }
-                        }
+                        Item::Bad { line_no, err } => sum.bad_line(line_no, err),
                     }
                 }
                 let _ = back_tx.try_send(batch);
             }
             out.flush();
-            sum.input = *pipe.counters();
-            sum.mode_seconds = pipe.mode_seconds();
-            sum.mode_samples = pipe.mode_samples;
+            sum.finish(pipe);
             sum
         });
         let parsed = parse_into(input, tx, back_rx);

@@ -92,6 +92,15 @@ impl<'a> BusSink<'a> {
     pub fn samples(&self) -> u64 {
         self.samples
     }
+
+    /// Queue one frame for the writer; a full queue drops it and counts it.
+    pub fn queue(&self, f: &OutFrame) {
+        if let Some(cf) = can_frame(f) {
+            if self.tx.try_send(cf).is_err() {
+                self.shell.tx_dropped.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
 }
 
 fn can_frame(f: &OutFrame) -> Option<CanFrame> {
@@ -103,11 +112,7 @@ impl Sink for BusSink<'_> {
         self.last = Some(*est);
         self.samples += 1;
         for f in frames {
-            if let Some(cf) = can_frame(f) {
-                if self.tx.try_send(cf).is_err() {
-                    self.shell.tx_dropped.fetch_add(1, Ordering::Relaxed);
-                }
-            }
+            self.queue(f);
         }
     }
     fn dropped(&mut self, _t_us: u64, cause: Drop) {
@@ -377,13 +382,8 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
                         if now.duration_since(silent_status_at).as_secs_f64() >= cfg.daemon.silent_after_s {
                             silent_status_at = now;
                             if let Some(est) = sink.last {
-                                let c = pipe.counters();
-                                let frames = encode(&est, &StatusCounters { errors: c.errors(), lost: c.lost }, &cfg.output, flags::BUS_SILENT);
-                                if let Some(cf) = can_frame(&frames[3]) {
-                                    if tx.try_send(cf).is_err() {
-                                        shell.tx_dropped.fetch_add(1, Ordering::Relaxed);
-                                    }
-                                }
+                                let frames = encode(&est, &StatusCounters::from(pipe.counters()), &cfg.output, flags::BUS_SILENT);
+                                sink.queue(&frames[3]);
                             }
                         }
                         // Idle is not stalled: the loop is alive, say so.
