@@ -281,6 +281,19 @@ pub struct RobustConfig {
     /// Fuse the tilt in the blend band (angles only, noise growing as the
     /// blend weight falls, gated).
     pub blend: bool,
+    /// Ground-vehicle motion model (`src/vehicle.rs`): the filter holds the
+    /// forward speed, `f_x` drives it, and the lateral specific force is
+    /// fused on straights and in turns with the centripetal `v r` predicted.
+    /// Off: roll and pitch are fused from the low-passed accelerometer only
+    /// when quasi-static, as tilt.
+    pub vehicle_model: bool,
+    /// 1-sigma of the low-passed lateral specific force against the model
+    /// (bumps, sideslip, lean), g.
+    pub lateral_sigma_g: f64,
+    /// Speed random walk (accelerometer error, model error), m/s/sqrt(s).
+    pub speed_noise: f64,
+    /// 1-sigma of the speed at power-on (the filter starts at 0), m/s.
+    pub init_speed_sigma: f64,
 }
 
 impl Default for RobustConfig {
@@ -294,6 +307,10 @@ impl Default for RobustConfig {
             tilt_sigma_deg: 2.0,
             fuse_every_s: 0.5,
             blend: true,
+            vehicle_model: true,
+            lateral_sigma_g: 0.01,
+            speed_noise: 0.3,
+            init_speed_sigma: 10.0,
         }
     }
 }
@@ -515,6 +532,9 @@ impl Config {
         positive("robust.lockout_s", r.lockout_s)?;
         positive("robust.tilt_sigma_deg", r.tilt_sigma_deg)?;
         non_negative("robust.fuse_every_s", r.fuse_every_s)?;
+        positive("robust.lateral_sigma_g", r.lateral_sigma_g)?;
+        positive("robust.speed_noise", r.speed_noise)?;
+        positive("robust.init_speed_sigma", r.init_speed_sigma)?;
         let o = &self.output;
         let oids = [o.rate_id, o.attitude_id, o.bias_id, o.status_id];
         for (k, v) in ["output.rate_id", "output.attitude_id", "output.bias_id", "output.status_id"].iter().zip(oids) {

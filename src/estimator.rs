@@ -25,6 +25,7 @@ use crate::config::{Config, Mode};
 use crate::ekf::{heading_from_mag, tilt_from_accel, wrap_pi, Ekf, Learn};
 use crate::switching::{Band, Switching};
 use crate::thermal::{SlopeLearner, SlopeParams, SlopeState, Thermal};
+use crate::vehicle::{self, ProcessNoise, Update, VehicleTilt};
 use nalgebra::Vector3;
 
 const D2R: f64 = std::f64::consts::PI / 180.0;
@@ -159,6 +160,17 @@ struct Robust {
     /// Seconds between tilt updates, and since the last one.
     fuse_every: f64,
     since_fuse: f64,
+    /// The tilt / x-y bias / speed filter, and whether it has started.
+    vt: VehicleTilt,
+    on: bool,
+    /// Use the ground-vehicle model (lateral specific force fused always).
+    vehicle: bool,
+    /// Lateral specific-force variance, g^2; process noise; initial speed sigma, m/s.
+    r_lat: f64,
+    qn: ProcessNoise,
+    speed_sigma0: f64,
+    /// Low-passed bias-corrected body z rate, rad/s.
+    r_lp: f64,
 }
 
 impl Estimator {
@@ -208,7 +220,7 @@ impl Estimator {
                 turn_rate: cfg.robust.turn_rate_dps * D2R,
                 gate: cfg.robust.gate_sigma * cfg.robust.gate_sigma,
                 lockout: cfg.robust.lockout_s,
-                r_tilt: (cfg.robust.tilt_sigma_deg * D2R).powi(2),
+                r_tilt: (cfg.robust.tilt_sigma_deg * D2R).sin().powi(2),
                 blend: cfg.robust.blend,
                 f_lp: None,
                 yaw_rate_lp: 0.0,
@@ -220,6 +232,17 @@ impl Estimator {
                 held: 2,
                 fuse_every: cfg.robust.fuse_every_s,
                 since_fuse: 0.0,
+                vt: VehicleTilt::new(0.0, 0.0, [0.0; 2], 0.0, [0.0; 3]),
+                on: false,
+                vehicle: cfg.robust.vehicle_model,
+                r_lat: cfg.robust.lateral_sigma_g.powi(2),
+                qn: ProcessNoise {
+                    gyro: (k.gyro_noise * D2R).powi(2),
+                    bias: (k.bias_walk * D2R).powi(2),
+                    speed: cfg.robust.speed_noise.powi(2),
+                },
+                speed_sigma0: cfg.robust.init_speed_sigma,
+                r_lp: 0.0,
             },
         }
     }
@@ -303,6 +326,7 @@ impl Estimator {
         }
         self.temp_prev = s.temp;
         self.started = true;
+        self.robust.on = false;
         self.t = 0.0;
     }
 
@@ -310,12 +334,14 @@ impl Estimator {
     pub fn step(&mut self, s: &Sample) -> Estimate {
         let mut fl = 0u16;
         let mut dt = s.steps as f64 * self.period;
+        let mut resync = false;
         if !self.started {
             self.start(s);
             dt = 0.0;
         } else if s.steps == 0 || dt > self.max_gap {
             // Unknown or long gap: do not integrate the gyro across it.
             fl |= flags::RESYNC;
+            resync = true;
             dt = self.period;
             self.ekf.inflate_angles((5.0 * D2R).powi(2));
             self.switching.reset();
@@ -342,7 +368,9 @@ impl Estimator {
         }
         let db = if thermal_on { Vector3::from(self.thermal.delta(self.temp_prev, s.temp)) * D2R } else { Vector3::zeros() };
         self.temp_prev = s.temp;
-        if dt > 0.0 {
+        if self.mode == Mode::Robust {
+            // step_robust predicts its own filters
+        } else if dt > 0.0 {
             self.ekf.predict(&omega, dt, self.q_gyro, self.q_bias, &db);
         } else {
             self.ekf.bias += db;
@@ -395,7 +423,7 @@ impl Estimator {
                 }
             }
             Mode::Robust => {
-                mode = self.step_robust(s, &omega, dt, dec.jerk, warm, &mut fl);
+                mode = self.step_robust(s, &omega, dt, &db, dec.jerk, warm, resync, &mut fl);
             }
             Mode::StartupAverage | Mode::StartupThermal => {
                 if s.suspect() {
@@ -462,37 +490,62 @@ impl Estimator {
         }
     }
 
-    /// One sample of `mode = "robust"`; returns the mode (0 fusion, 1 blend, 2 gyro only).
-    fn step_robust(&mut self, s: &Sample, omega: &Vector3<f64>, dt: f64, jerk: bool, warm: bool, fl: &mut u16) -> u8 {
-        if self.robust.yaw_p[0][0] == 0.0 {
-            // first sample: the yaw filter starts from the EKF's start
-            self.robust.yaw = self.ekf.att[2];
-            self.robust.yaw_bz = self.ekf.bias[2];
-            self.robust.yaw_p = [[self.angle_sigma * self.angle_sigma, 0.0], [0.0, self.bias_sigma * self.bias_sigma]];
-        }
-        // The EKF's predict moved the z bias by the thermal curve: keep that.
-        self.robust.yaw_bz = self.ekf.bias[2];
+    /// One sample of `mode = "robust"`; returns the mode (0 fusion with
+    /// bias learning, 1 accelerometer-aided without bias learning, 2 gyro only).
+    #[allow(clippy::too_many_arguments)]
+    fn step_robust(&mut self, s: &Sample, omega: &Vector3<f64>, dt: f64, db: &Vector3<f64>, jerk: bool, warm: bool, resync: bool, fl: &mut u16) -> u8 {
         let rb = &mut self.robust;
+        if !rb.on {
+            // first sample (or a restart): the filters start from the EKF's start
+            let e = &self.ekf;
+            rb.vt = VehicleTilt::new(e.att[0], e.att[1], [e.bias[0], e.bias[1]], 0.0, [self.angle_sigma, self.bias_sigma, rb.speed_sigma0]);
+            rb.vt.p[vehicle::BX][vehicle::BX] = e.pbb[(0, 0)];
+            rb.vt.p[vehicle::BY][vehicle::BY] = e.pbb[(1, 1)];
+            rb.yaw = e.att[2];
+            rb.yaw_bz = e.bias[2];
+            rb.yaw_p = [[self.angle_sigma * self.angle_sigma, 0.0], [0.0, e.pbb[(2, 2)]]];
+            rb.f_lp = None;
+            rb.on = true;
+        }
+        if resync {
+            rb.vt.inflate_angles((5.0 * D2R) * (5.0 * D2R));
+        }
+        // The thermal curve moves the bias (anchored at what the filters hold).
+        rb.yaw_bz += db[2];
+        let om = [omega[0], omega[1], omega[2]];
+        if dt > 0.0 {
+            rb.vt.predict(&om, rb.yaw_bz, s.accel[0], dt, &rb.qn, [db[0], db[1]]);
+        } else {
+            rb.vt.x[vehicle::BX] += db[0];
+            rb.vt.x[vehicle::BY] += db[1];
+        }
+        let x = rb.vt.x;
+        let w = Vector3::new(om[0] - x[vehicle::BX], om[1] - x[vehicle::BY], om[2] - rb.yaw_bz);
         let f = Vector3::new(s.accel[0], s.accel[1], s.accel[2]);
         // Gyro-compensated low-pass: a vector fixed in NED turns in the body
         // frame as df/dt = -w x f; gravity then passes without lag.
-        let w = omega - self.ekf.bias;
+        let a = (dt / rb.tau).min(1.0);
         let f_lp = match rb.f_lp {
             None => f,
             Some(lp) => {
                 let rot = lp - w.cross(&lp) * dt;
-                rot + (f - rot) * (dt / rb.tau).min(1.0)
+                rot + (f - rot) * a
             }
         };
         rb.f_lp = Some(f_lp);
-        let ratio = f_lp.norm() / self.g0;
+        // The body z rate, low-passed alike, for the centripetal term.
+        rb.r_lp += (w[2] - rb.r_lp) * a;
+        // The band decision on the specific force less the vehicle's
+        // predicted centripetal acceleration (none without the model).
+        let lat = if rb.vehicle { x[vehicle::SPEED] * rb.r_lp / vehicle::G } else { 0.0 };
+        let fy = f_lp[1] - lat;
+        let ratio = (f_lp[0] * f_lp[0] + fy * fy + f_lp[2] * f_lp[2]).sqrt() / self.g0;
         let (band, weight) = self.switching.band(ratio);
         // Turning at speed means a centripetal acceleration that |a| hardly
         // shows (0.1 g changes |a| by 0.5 %): gate on the low-passed heading rate.
-        let (sr, cr) = self.ekf.att[0].sin_cos();
-        let cp = self.ekf.att[1].cos().max(1e-3);
+        let (sr, cr) = x[vehicle::ROLL].sin_cos();
+        let cp = x[vehicle::PITCH].cos().max(1e-3);
         let yaw_rate = (sr * w[1] + cr * w[2]) / cp;
-        let a = (dt / rb.tau).min(1.0);
         rb.yaw_rate_lp += (yaw_rate - rb.yaw_rate_lp) * a;
         let turning = rb.yaw_rate_lp.abs() > rb.turn_rate;
         let quiet = band == Band::Inner && !jerk && !turning && !s.suspect();
@@ -500,70 +553,107 @@ impl Estimator {
         if s.suspect() {
             *fl |= flags::SUSPECT;
         }
-        let (roll, pitch) = tilt_from_accel(&[f_lp[0], f_lp[1], f_lp[2]]);
-        let z = Vector3::new(roll, pitch, 0.0);
+        let settled = quiet && rb.dwell >= rb.dwell_need;
         let mut mode = 2u8;
         rb.since_fuse += dt;
-        // The low-passed tilt is correlated over ~tau: fuse it at intervals,
-        // not every sample, so its noise is not counted many times over.
+        // The low-passed specific force is correlated over ~tau: fuse it at
+        // intervals, not every sample, so its noise is not counted many times over.
         let due = rb.since_fuse + 1e-9 >= rb.fuse_every;
         let blend_ok = rb.blend && band == Band::Blend && !jerk && !turning && !s.suspect();
+        let lateral_ok = rb.vehicle && !jerk && !s.suspect();
         if !due {
             // between updates: the mode of the last update, while its conditions hold
-            let holds = (rb.held == 0 && quiet && rb.dwell >= rb.dwell_need) || (rb.held == 1 && blend_ok);
+            let holds = (rb.held == 0 && settled) || (rb.held == 1 && (blend_ok || lateral_ok));
             mode = if holds { rb.held } else { 2 };
-        } else if quiet && rb.dwell >= rb.dwell_need {
+        } else {
             rb.since_fuse = 0.0;
-            let r = Vector3::new(rb.r_tilt, rb.r_tilt, 1.0);
-            if self.ekf.nis(&z, &r, false) <= rb.gate {
-                let learn = if warm { Learn::AnglesOnly } else { Learn::AnglesAndBias };
-                self.ekf.update(&z, &r, false, learn);
-                rb.refused = 0.0;
-                mode = 0;
-                if !warm {
-                    self.last_fused = Some((s.temp, [self.ekf.bias[0] * R2D, self.ekf.bias[1] * R2D, self.ekf.bias[2] * R2D]));
+            let mut gated = false;
+            let mut lateral_fused = false;
+            if lateral_ok {
+                // f_y on straights and in turns; it teaches the bias only when
+                // the rest says quasi-static (the paper's structure).
+                let (h, row) = rb.vt.lateral(rb.r_lp);
+                match rb.vt.update(fy + lat - h, &row, rb.r_lat, settled && !warm, rb.gate) {
+                    Update::Fused(_) => lateral_fused = true,
+                    Update::Gated(_) => gated = true,
                 }
-            } else {
-                *fl |= flags::GATED;
-                rb.refused += rb.fuse_every.max(dt);
-                if rb.refused >= rb.lockout {
-                    // Refused for too long while everything says quasi-static:
-                    // the filter, not the accelerometer, is wrong. Re-level on
-                    // the measurement (angles only: a jump this size must not
-                    // be read as a bias) and widen the angle covariance to it.
-                    let d0 = wrap_pi(roll - self.ekf.att[0]);
-                    let d1 = pitch - self.ekf.att[1];
-                    let v = d0 * d0 + d1 * d1;
-                    self.ekf.inflate_angles(v);
-                    self.ekf.update(&z, &Vector3::new(rb.r_tilt, rb.r_tilt, 1.0), false, Learn::AnglesOnly);
+            }
+            if settled {
+                // f_x as pitch (and without the vehicle model f_y as roll)
+                let (h, row) = rb.vt.longitudinal();
+                let nu = f_lp[0] - h;
+                let mut ok = matches!(rb.vt.update(nu, &row, rb.r_tilt, !warm, rb.gate), Update::Fused(_));
+                if !rb.vehicle {
+                    let (h, row) = rb.vt.lateral(0.0);
+                    ok &= matches!(rb.vt.update(f_lp[1] - h, &row, rb.r_tilt, !warm, rb.gate), Update::Fused(_));
+                }
+                if ok && (lateral_fused || !rb.vehicle) {
                     rb.refused = 0.0;
                     mode = 0;
+                } else {
+                    gated = true;
+                    rb.refused += rb.fuse_every.max(dt);
+                    if rb.refused >= rb.lockout {
+                        // Refused for too long while everything says quasi-static:
+                        // the filter, not the accelerometer, is wrong. Re-level on
+                        // the measurement (angles only: a jump this size must not
+                        // be read as a bias) with the angle covariance widened to it.
+                        let (h, row) = rb.vt.longitudinal();
+                        let (hl, rowl) = rb.vt.lateral(if rb.vehicle { rb.r_lp } else { 0.0 });
+                        let (n0, n1) = (f_lp[0] - h, f_lp[1] - hl);
+                        rb.vt.inflate_angles(n0 * n0 + n1 * n1);
+                        rb.vt.update(n0, &row, rb.r_tilt, false, f64::INFINITY);
+                        let (hl, rowl2) = rb.vt.lateral(if rb.vehicle { rb.r_lp } else { 0.0 });
+                        let _ = rowl;
+                        rb.vt.update(f_lp[1] - hl, &rowl2, rb.r_tilt, false, f64::INFINITY);
+                        rb.refused = 0.0;
+                        mode = 0;
+                    }
+                }
+            } else if blend_ok {
+                // Angles only, noise growing as the blend weight falls; gated.
+                let k = 1.0 / (weight * weight).max(1e-6);
+                let (h, row) = rb.vt.longitudinal();
+                let mut ok = matches!(rb.vt.update(f_lp[0] - h, &row, rb.r_tilt * k, false, rb.gate), Update::Fused(_));
+                if !rb.vehicle {
+                    let (h, row) = rb.vt.lateral(0.0);
+                    ok &= matches!(rb.vt.update(f_lp[1] - h, &row, rb.r_tilt * k, false, rb.gate), Update::Fused(_));
+                }
+                if ok {
+                    mode = 1;
+                } else {
+                    gated = true;
                 }
             }
-        } else if blend_ok {
-            rb.since_fuse = 0.0;
-            // Angles only, noise growing as the blend weight falls; gated.
-            let k = 1.0 / (weight * weight).max(1e-6);
-            let r = Vector3::new(rb.r_tilt * k, rb.r_tilt * k, 1.0);
-            if self.ekf.nis(&z, &r, false) <= rb.gate {
-                self.ekf.update(&z, &r, false, Learn::AnglesOnly);
+            if mode == 2 && lateral_fused {
                 mode = 1;
-            } else {
+            }
+            if gated {
                 *fl |= flags::GATED;
             }
-        }
-        if due {
             rb.held = mode;
         }
+        // The EKF holds what goes out (and what the yaw filter reads).
+        let x = rb.vt.x;
+        self.ekf.att[0] = x[vehicle::ROLL];
+        self.ekf.att[1] = x[vehicle::PITCH];
+        self.ekf.bias[0] = x[vehicle::BX];
+        self.ekf.bias[1] = x[vehicle::BY];
+        self.ekf.pbb[(0, 0)] = rb.vt.p[vehicle::BX][vehicle::BX];
+        self.ekf.pbb[(1, 1)] = rb.vt.p[vehicle::BY][vehicle::BY];
         // Yaw: the magnetometer is not disturbed by acceleration, but its
         // heading is computed with the filter's own roll and pitch; fused
-        // inside the EKF it pulls the tilt and the x/y bias through their
-        // correlations with yaw. So yaw and the z bias have their own
-        // two-state Kalman filter (same kinematics, its own covariance), and
-        // the tilt updates above leave the z bias alone.
-        self.ekf.bias[2] = self.robust.yaw_bz;
-        self.ekf.att[2] = self.robust.yaw;
-        self.yaw_filter(s, omega, dt, warm || self.robust.dwell < self.robust.dwell_need);
+        // together with the tilt it would pull the tilt and the x/y bias
+        // through their correlations with yaw. So yaw and the z bias have
+        // their own two-state Kalman filter.
+        self.ekf.bias[2] = rb.yaw_bz;
+        self.ekf.att[2] = rb.yaw;
+        let freeze = warm || !settled;
+        self.yaw_filter(s, omega, dt, freeze);
+        self.ekf.pbb[(2, 2)] = self.robust.yaw_p[1][1];
+        if mode == 0 && !warm {
+            self.last_fused = Some((s.temp, self.bias_deg()));
+        }
         mode
     }
 

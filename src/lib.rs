@@ -20,3 +20,4 @@ pub mod replay;
 pub mod sim;
 pub mod switching;
 pub mod thermal;
+pub mod vehicle;

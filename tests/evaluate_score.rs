@@ -95,3 +95,27 @@ fn ablation_prints_the_three_paper_cases_and_writes_the_report() {
         assert!(s.starts_with("<svg") && s.contains("polyline"), "{svg}");
     }
 }
+
+/// The default (robust) mode holds the attitude through the manoeuvres of a
+/// `vehicle --hard` run within the targets, and the ground-vehicle
+/// model is what does it: without it the same run misses them. Seed 6 was
+/// the worst of seeds 1..20 before the vehicle model (2.9 deg).
+#[test]
+fn robust_holds_attitude_through_hard_manoeuvres() {
+    let mut o = SimOptions::new("vehicle", 6);
+    o.hard = true;
+    let data = RunData::simulate(&o).unwrap();
+    let start = data.info.manoeuvre_start_s;
+    let run = |extra: &str| {
+        let mut c = Config::parse(extra, "test").unwrap();
+        c.thermal = data.unit_config.as_ref().unwrap().thermal.clone();
+        let (est, ms) = data.estimates(&c).unwrap();
+        (score("robust", &data, &est, ms, start), oracle(&data, &est, start).0)
+    };
+    let (m, orc) = run("");
+    assert!(m.max_err[0] <= 2.0 && m.max_err[1] <= 2.0, "max roll/pitch {:?}", m.max_err);
+    assert!(m.tilt_max() <= 1.5 * orc.tilt_max(), "{} vs oracle {}", m.tilt_max(), orc.tilt_max());
+    assert!(m.rms_err[2] <= 3.0, "yaw rms {}", m.rms_err[2]);
+    let (off, _) = run("[robust]\nvehicle_model = false\n");
+    assert!(off.tilt_max() > 2.0 && off.tilt_max() > 2.0 * m.tilt_max(), "without the model {} vs {}", off.tilt_max(), m.tilt_max());
+}
