@@ -286,6 +286,12 @@ pub fn tilt_from_accel(f: &[f64; 3]) -> (f64, f64) {
 pub fn heading_from_mag(m: &[f64; 3], roll: f64, pitch: f64) -> f64 {
     let (sp, cp) = roll.sin_cos();
     let (st, ct) = pitch.sin_cos();
+    heading_from_mag_trig(m, [sp, cp, st, ct])
+}
+
+/// `heading_from_mag` with `[sin roll, cos roll, sin pitch, cos pitch]` given.
+#[inline]
+pub fn heading_from_mag_trig(m: &[f64; 3], [sp, cp, st, ct]: [f64; 4]) -> f64 {
     let xh = m[0] * ct + m[1] * sp * st + m[2] * cp * st;
     let yh = m[1] * cp - m[2] * sp;
     (-yh).atan2(xh)

@@ -22,7 +22,7 @@
 
 use crate::adis::Sample;
 use crate::config::{Config, Mode};
-use crate::ekf::{heading_from_mag, tilt_from_accel, wrap_pi, Ekf, Learn};
+use crate::ekf::{heading_from_mag, heading_from_mag_trig, tilt_from_accel, wrap_pi, Ekf, Learn};
 use crate::switching::{Band, Switching};
 use crate::thermal::{SlopeLearner, SlopeParams, SlopeState, Thermal};
 use crate::vehicle::{self, ProcessNoise, Update, VehicleTilt};
@@ -350,8 +350,8 @@ impl Estimator {
         let t = self.t;
 
         // g0: mean |a| over the first g0_window seconds.
-        let amag = (s.accel[0] * s.accel[0] + s.accel[1] * s.accel[1] + s.accel[2] * s.accel[2]).sqrt();
         if t < self.g0_window || self.g0_n == 0 {
+            let amag = (s.accel[0] * s.accel[0] + s.accel[1] * s.accel[1] + s.accel[2] * s.accel[2]).sqrt();
             if amag > 0.0 {
                 self.g0_sum += amag;
                 self.g0_n += 1;
@@ -543,9 +543,8 @@ impl Estimator {
         let (band, weight) = self.switching.band(ratio);
         // Turning at speed means a centripetal acceleration that |a| hardly
         // shows (0.1 g changes |a| by 0.5 %): gate on the low-passed heading rate.
-        let (sr, cr) = x[vehicle::ROLL].sin_cos();
-        let cp = x[vehicle::PITCH].cos().max(1e-3);
-        let yaw_rate = (sr * w[1] + cr * w[2]) / cp;
+        let [sr, cr, _, cp] = rb.vt.trig;
+        let yaw_rate = (sr * w[1] + cr * w[2]) / cp.max(1e-3);
         rb.yaw_rate_lp += (yaw_rate - rb.yaw_rate_lp) * a;
         let turning = rb.yaw_rate_lp.abs() > rb.turn_rate;
         let quiet = band == Band::Inner && !jerk && !turning && !s.suspect();
@@ -649,7 +648,8 @@ impl Estimator {
         self.ekf.bias[2] = rb.yaw_bz;
         self.ekf.att[2] = rb.yaw;
         let freeze = warm || !settled;
-        self.yaw_filter(s, omega, dt, freeze);
+        let trig = rb.vt.trig;
+        self.yaw_filter(s, omega, dt, freeze, trig);
         self.ekf.pbb[(2, 2)] = self.robust.yaw_p[1][1];
         if mode == 0 && !warm {
             self.last_fused = Some((s.temp, self.bias_deg()));
@@ -659,10 +659,11 @@ impl Estimator {
 
     /// The robust mode's yaw / z-bias filter: predict with the Euler yaw
     /// rate, update with the magnetometer heading (no yaw without one).
-    fn yaw_filter(&mut self, s: &Sample, omega: &Vector3<f64>, dt: f64, freeze_bias: bool) {
+    /// `trig`: sin/cos of the roll and pitch the EKF holds.
+    fn yaw_filter(&mut self, s: &Sample, omega: &Vector3<f64>, dt: f64, freeze_bias: bool, trig: [f64; 4]) {
         let rb = &mut self.robust;
-        let (sr, cr) = self.ekf.att[0].sin_cos();
-        let cp = self.ekf.att[1].cos().max(1e-3);
+        let [sr, cr, _, cp] = trig;
+        let cp = cp.max(1e-3);
         let g = cr / cp;
         if dt > 0.0 {
             let w = omega - self.ekf.bias;
@@ -678,7 +679,7 @@ impl Estimator {
             rb.yaw_p = [[p00, p01], [p01, p11]];
         }
         if self.use_mag && !s.suspect() {
-            let z = wrap_pi(heading_from_mag(&s.magn, self.ekf.att[0], self.ekf.att[1]) + self.declination);
+            let z = wrap_pi(heading_from_mag_trig(&s.magn, trig) + self.declination);
             let nu = wrap_pi(z - rb.yaw);
             let p = rb.yaw_p;
             let sv = p[0][0] + self.r_yaw;

@@ -41,7 +41,6 @@ pub struct Decision {
 pub struct Switching {
     inner: [f64; 2],
     outer: [f64; 2],
-    jerk_ratio: f64,
     /// Ring of the last `n` specific-force vectors and magnitudes.
     ring: Vec<[f64; 4]>,
     head: usize,
@@ -51,7 +50,8 @@ pub struct Switching {
     sum_old: [f64; 3],
     sum_mag: f64,
     since_refresh: usize,
-    dt: f64,
+    /// jerk_ratio (n/2)^2 dt / n: see `push`.
+    jerk_limit: f64,
 }
 
 impl Switching {
@@ -61,7 +61,6 @@ impl Switching {
         Switching {
             inner: c.inner,
             outer: c.outer,
-            jerk_ratio: c.jerk_ratio,
             ring: vec![[0.0; 4]; n],
             head: 0,
             filled: 0,
@@ -69,7 +68,7 @@ impl Switching {
             sum_old: [0.0; 3],
             sum_mag: 0.0,
             since_refresh: 0,
-            dt: 1.0 / rate_hz,
+            jerk_limit: c.jerk_ratio * (n as f64 / 2.0).powi(2) / rate_hz / n as f64,
         }
     }
 
@@ -140,14 +139,16 @@ impl Switching {
         if self.filled < n {
             return false;
         }
-        let hf = h as f64;
+        // The change of the mean between the halves is d / (n/2) with
+        // d = sum_new - sum_old; the criterion slope = |d| / (n/2)^2 / dt >
+        // jerk_ratio * sum_mag / n is compared squared and multiplied out
+        // (no sqrt, no division): |d| > jerk_limit * sum_mag.
         let mut d2 = 0.0;
         for k in 0..3 {
-            let d = (self.sum_new[k] - self.sum_old[k]) / hf;
+            let d = self.sum_new[k] - self.sum_old[k];
             d2 += d * d;
         }
-        // slope = sqrt(d2) / (hf dt) > jerk_ratio * mean, compared squared (no sqrt)
-        let limit = self.jerk_ratio * (self.sum_mag / n as f64) * hf * self.dt;
+        let limit = self.jerk_limit * self.sum_mag;
         d2 > limit * limit
     }
 
@@ -159,9 +160,11 @@ impl Switching {
         self.sum_new = [0.0; 3];
         self.sum_old = [0.0; 3];
         self.sum_mag = 0.0;
+        // i = 0 is the newest sample, at head - 1; walk back without a modulo
+        let mut j = self.head;
         for i in 0..self.filled {
-            // i = 0 is the newest sample
-            let s = self.ring[(self.head + n - 1 - i) % n];
+            j = if j == 0 { n - 1 } else { j - 1 };
+            let s = self.ring[j];
             let half = if i < h { &mut self.sum_new } else { &mut self.sum_old };
             for k in 0..3 {
                 half[k] += s[k];

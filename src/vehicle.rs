@@ -37,6 +37,16 @@ pub const SPEED: usize = 4;
 pub struct VehicleTilt {
     pub x: [f64; 5],
     pub p: [[f64; 5]; 5],
+    /// `[sin roll, cos roll, sin pitch, cos pitch]` of `x`, kept in step
+    /// with it (every step needs them; computed once).
+    pub trig: [f64; 4],
+}
+
+#[inline]
+fn trig_of(roll: f64, pitch: f64) -> [f64; 4] {
+    let (sp, cp) = roll.sin_cos();
+    let (st, ct) = pitch.sin_cos();
+    [sp, cp, st, ct]
 }
 
 /// Noise of the process model.
@@ -69,7 +79,7 @@ impl VehicleTilt {
         p[BX][BX] = sigma[1] * sigma[1];
         p[BY][BY] = sigma[1] * sigma[1];
         p[SPEED][SPEED] = sigma[2] * sigma[2];
-        VehicleTilt { x: [roll, pitch, b[0], b[1], v], p }
+        VehicleTilt { x: [roll, pitch, b[0], b[1], v], p, trig: trig_of(roll, pitch) }
     }
 
     /// Predict over `dt` with the gyro `omega` (rad/s), the z bias `bz`
@@ -81,8 +91,7 @@ impl VehicleTilt {
         let wx = omega[0] - bx;
         let wy = omega[1] - by;
         let wz = omega[2] - bz;
-        let (sp, cp) = phi.sin_cos();
-        let (st, ct) = th.sin_cos();
+        let [sp, cp, st, ct] = self.trig;
         let ct = ct.max(1e-3);
         let tt = st / ct;
         let a = sp * wy + cp * wz;
@@ -128,6 +137,7 @@ impl VehicleTilt {
         self.x[BX] += db[0];
         self.x[BY] += db[1];
         self.x[SPEED] += G * (fx - st) * dt;
+        self.trig = trig_of(self.x[ROLL], self.x[PITCH]);
     }
 
     /// Scalar measurement update: innovation `nu`, row `h` of the Jacobian,
@@ -160,6 +170,7 @@ impl VehicleTilt {
         }
         self.x[ROLL] = crate::ekf::wrap_pi(self.x[ROLL]);
         self.x[PITCH] = self.x[PITCH].clamp(-PITCH_LIMIT, PITCH_LIMIT);
+        self.trig = trig_of(self.x[ROLL], self.x[PITCH]);
         // Joseph form: P = A P A^T + r k k^T, A = I - k h^T.
         let mut ap = [[0.0; 5]; 5];
         for i in 0..5 {
@@ -190,8 +201,7 @@ impl VehicleTilt {
     /// z rate `r` (rad/s) and its Jacobian row.
     #[inline]
     pub fn lateral(&self, r: f64) -> (f64, [f64; 5]) {
-        let (sp, cp) = self.x[ROLL].sin_cos();
-        let (st, ct) = self.x[PITCH].sin_cos();
+        let [sp, cp, st, ct] = self.trig;
         let h = self.x[SPEED] * r / G - sp * ct;
         (h, [-cp * ct, sp * st, 0.0, 0.0, r / G])
     }
@@ -200,7 +210,7 @@ impl VehicleTilt {
     /// predicted longitudinal specific force (g) and its Jacobian row.
     #[inline]
     pub fn longitudinal(&self) -> (f64, [f64; 5]) {
-        let (st, ct) = self.x[PITCH].sin_cos();
+        let [_, _, st, ct] = self.trig;
         (st, [0.0, ct, 0.0, 0.0, 0.0])
     }
 
@@ -238,6 +248,7 @@ mod tests {
         let step = |x: [f64; 5]| {
             let mut t = base.clone();
             t.x = x;
+            t.trig = trig_of(x[0], x[1]);
             t.predict(&omega, bz, fx, dt, &ProcessNoise { gyro: 0.0, bias: 0.0, speed: 0.0 }, [0.0; 2]);
             t.x
         };
@@ -283,8 +294,10 @@ mod tests {
             let e = 1e-6;
             let mut a = t.clone();
             a.x[j] += e;
+            a.trig = trig_of(a.x[0], a.x[1]);
             let mut b = t.clone();
             b.x[j] -= e;
+            b.trig = trig_of(b.x[0], b.x[1]);
             let d = (a.lateral(r).0 - b.lateral(r).0) / (2.0 * e);
             assert!((d - h[j]).abs() < 1e-8, "column {j}: {d} vs {}", h[j]);
         }
