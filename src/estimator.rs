@@ -597,14 +597,14 @@ impl Estimator {
                         // the filter, not the accelerometer, is wrong. Re-level on
                         // the measurement (angles only: a jump this size must not
                         // be read as a bias) with the angle covariance widened to it.
+                        let r = if rb.vehicle { rb.r_lp } else { 0.0 };
                         let (h, row) = rb.vt.longitudinal();
-                        let (hl, rowl) = rb.vt.lateral(if rb.vehicle { rb.r_lp } else { 0.0 });
+                        let (hl, _) = rb.vt.lateral(r);
                         let (n0, n1) = (f_lp[0] - h, f_lp[1] - hl);
                         rb.vt.inflate_angles(n0 * n0 + n1 * n1);
                         rb.vt.update(n0, &row, rb.r_tilt, false, f64::INFINITY);
-                        let (hl, rowl2) = rb.vt.lateral(if rb.vehicle { rb.r_lp } else { 0.0 });
-                        let _ = rowl;
-                        rb.vt.update(f_lp[1] - hl, &rowl2, rb.r_tilt, false, f64::INFINITY);
+                        let (hl, rowl) = rb.vt.lateral(r);
+                        rb.vt.update(f_lp[1] - hl, &rowl, rb.r_tilt, false, f64::INFINITY);
                         rb.refused = 0.0;
                         mode = 0;
                     }
