@@ -141,25 +141,6 @@ impl Ekf {
         self.normalise_angles();
     }
 
-    /// Normalised innovation squared of a roll/pitch(/yaw) measurement,
-    /// without updating (for gating).
-    pub fn nis(&self, z: &Vector3<f64>, r: &Vector3<f64>, yaw: bool) -> f64 {
-        let nu = Vector3::new(wrap_pi(z[0] - self.att[0]), z[1] - self.att[1], wrap_pi(z[2] - self.att[2]));
-        let s = symmetric(&(self.paa + Matrix3::from_diagonal(r)));
-        if !yaw {
-            let s2 = nalgebra::Matrix2::new(s[(0, 0)], s[(0, 1)], s[(1, 0)], s[(1, 1)]);
-            let v = nalgebra::Vector2::new(nu[0], nu[1]);
-            return match s2.try_inverse() {
-                Some(si) => (v.transpose() * si * v)[0],
-                None => f64::INFINITY,
-            };
-        }
-        match s.try_inverse() {
-            Some(si) => (nu.transpose() * si * nu)[0],
-            None => f64::INFINITY,
-        }
-    }
-
     /// Measurement update with `z = [roll, pitch, yaw]` (rad) and diagonal
     /// noise variances `r`. With `yaw == false` only roll and pitch are used.
     /// Returns the innovation (rad) and the normalised innovation squared.

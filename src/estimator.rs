@@ -135,7 +135,7 @@ pub struct Estimator {
 #[derive(Clone, Debug)]
 struct Robust {
     /// Low-pass time constant (s), dwell (s), turn-rate gate (rad/s),
-    /// NIS gate, lock-out (s), tilt variance (rad^2).
+    /// NIS gate, lock-out (s), variance of f_x (or f_y) as tilt, g^2.
     tau: f64,
     dwell_need: f64,
     turn_rate: f64,
@@ -173,11 +173,28 @@ struct Robust {
     r_lp: f64,
 }
 
+impl Robust {
+    /// The accelerometer as tilt: `f_x` as pitch and, without the vehicle
+    /// model, `f_y` as roll, each with variance `r`, gated. True when every
+    /// update was fused.
+    fn tilt_update(&mut self, f_lp: &Vector3<f64>, r: f64, learn_bias: bool) -> bool {
+        let (h, row) = self.vt.longitudinal();
+        let mut ok = matches!(self.vt.update(f_lp[0] - h, &row, r, learn_bias, self.gate), Update::Fused(_));
+        if !self.vehicle {
+            let (h, row) = self.vt.lateral(0.0);
+            ok &= matches!(self.vt.update(f_lp[1] - h, &row, r, learn_bias, self.gate), Update::Fused(_));
+        }
+        ok
+    }
+}
+
 impl Estimator {
     pub fn new(cfg: &Config) -> Estimator {
         let p = cfg.profile();
         let e = &cfg.estimator;
         let k = &cfg.ekf;
+        let q_gyro = (k.gyro_noise * D2R).powi(2);
+        let q_bias = (k.bias_walk * D2R).powi(2);
         Estimator {
             mode: e.mode,
             period: 1.0 / p.rate_hz,
@@ -187,8 +204,8 @@ impl Estimator {
             learn_end: e.warmup_s + e.learn_s,
             declination: e.declination_deg * D2R,
             use_mag: e.use_magnetometer && p.magnetometer,
-            q_gyro: (k.gyro_noise * D2R).powi(2),
-            q_bias: (k.bias_walk * D2R).powi(2),
+            q_gyro,
+            q_bias,
             r_tilt: (k.tilt_sigma_deg * D2R).powi(2),
             r_yaw: (k.yaw_sigma_deg * D2R).powi(2),
             angle_sigma: k.init_angle_sigma_deg * D2R,
@@ -236,11 +253,7 @@ impl Estimator {
                 on: false,
                 vehicle: cfg.robust.vehicle_model,
                 r_lat: cfg.robust.lateral_sigma_g.powi(2),
-                qn: ProcessNoise {
-                    gyro: (k.gyro_noise * D2R).powi(2),
-                    bias: (k.bias_walk * D2R).powi(2),
-                    speed: cfg.robust.speed_noise.powi(2),
-                },
+                qn: ProcessNoise { gyro: q_gyro, bias: q_bias, speed: cfg.robust.speed_noise.powi(2) },
                 speed_sigma0: cfg.robust.init_speed_sigma,
                 r_lp: 0.0,
             },
@@ -572,20 +585,13 @@ impl Estimator {
                 // f_y on straights and in turns; it teaches the bias only when
                 // the rest says quasi-static (the paper's structure).
                 let (h, row) = rb.vt.lateral(rb.r_lp);
-                match rb.vt.update(fy + lat - h, &row, rb.r_lat, settled && !warm, rb.gate) {
+                match rb.vt.update(f_lp[1] - h, &row, rb.r_lat, settled && !warm, rb.gate) {
                     Update::Fused(_) => lateral_fused = true,
                     Update::Gated(_) => gated = true,
                 }
             }
             if settled {
-                // f_x as pitch (and without the vehicle model f_y as roll)
-                let (h, row) = rb.vt.longitudinal();
-                let nu = f_lp[0] - h;
-                let mut ok = matches!(rb.vt.update(nu, &row, rb.r_tilt, !warm, rb.gate), Update::Fused(_));
-                if !rb.vehicle {
-                    let (h, row) = rb.vt.lateral(0.0);
-                    ok &= matches!(rb.vt.update(f_lp[1] - h, &row, rb.r_tilt, !warm, rb.gate), Update::Fused(_));
-                }
+                let ok = rb.tilt_update(&f_lp, rb.r_tilt, !warm);
                 if ok && (lateral_fused || !rb.vehicle) {
                     rb.refused = 0.0;
                     mode = 0;
@@ -599,12 +605,12 @@ impl Estimator {
                         // be read as a bias) with the angle covariance widened to it.
                         let r = if rb.vehicle { rb.r_lp } else { 0.0 };
                         let (h, row) = rb.vt.longitudinal();
-                        let (hl, _) = rb.vt.lateral(r);
-                        let (n0, n1) = (f_lp[0] - h, f_lp[1] - hl);
+                        let n0 = f_lp[0] - h;
+                        let n1 = f_lp[1] - rb.vt.lateral(r).0;
                         rb.vt.inflate_angles(n0 * n0 + n1 * n1);
                         rb.vt.update(n0, &row, rb.r_tilt, false, f64::INFINITY);
-                        let (hl, rowl) = rb.vt.lateral(r);
-                        rb.vt.update(f_lp[1] - hl, &rowl, rb.r_tilt, false, f64::INFINITY);
+                        let (h, row) = rb.vt.lateral(r);
+                        rb.vt.update(f_lp[1] - h, &row, rb.r_tilt, false, f64::INFINITY);
                         rb.refused = 0.0;
                         mode = 0;
                     }
@@ -612,13 +618,7 @@ impl Estimator {
             } else if blend_ok {
                 // Angles only, noise growing as the blend weight falls; gated.
                 let k = 1.0 / (weight * weight).max(1e-6);
-                let (h, row) = rb.vt.longitudinal();
-                let mut ok = matches!(rb.vt.update(f_lp[0] - h, &row, rb.r_tilt * k, false, rb.gate), Update::Fused(_));
-                if !rb.vehicle {
-                    let (h, row) = rb.vt.lateral(0.0);
-                    ok &= matches!(rb.vt.update(f_lp[1] - h, &row, rb.r_tilt * k, false, rb.gate), Update::Fused(_));
-                }
-                if ok {
+                if rb.tilt_update(&f_lp, rb.r_tilt * k, false) {
                     mode = 1;
                 } else {
                     gated = true;

@@ -172,11 +172,14 @@ impl VehicleTilt {
         self.x[PITCH] = self.x[PITCH].clamp(-PITCH_LIMIT, PITCH_LIMIT);
         self.trig = trig_of(self.x[ROLL], self.x[PITCH]);
         // Joseph form: P = A P A^T + r k k^T, A = I - k h^T.
+        let mut hp = [0.0; 5];
+        for (j, v) in hp.iter_mut().enumerate() {
+            *v = (0..5).map(|l| h[l] * self.p[l][j]).sum();
+        }
         let mut ap = [[0.0; 5]; 5];
         for i in 0..5 {
             for j in 0..5 {
-                let hp: f64 = (0..5).map(|l| h[l] * self.p[l][j]).sum();
-                ap[i][j] = self.p[i][j] - k[i] * hp;
+                ap[i][j] = self.p[i][j] - k[i] * hp[j];
             }
         }
         let mut np = [[0.0; 5]; 5];
@@ -218,10 +221,6 @@ impl VehicleTilt {
     pub fn inflate_angles(&mut self, var: f64) {
         self.p[ROLL][ROLL] += var;
         self.p[PITCH][PITCH] += var;
-    }
-
-    pub fn is_finite(&self) -> bool {
-        self.x.iter().all(|v| v.is_finite()) && self.p.iter().flatten().all(|v| v.is_finite())
     }
 }
 
