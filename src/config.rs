@@ -595,6 +595,10 @@ mod tests {
         assert!(bad("[robust]\ngate_sigma = 0.0").contains("robust.gate_sigma"));
         assert!(bad("[robust]\naccel_tau_s = -1.0").contains("robust.accel_tau_s"));
         assert!(bad("[robust]\ndwell_s = nan").contains("robust.dwell_s"));
+        assert!(bad("[robust]\nlateral_sigma_g = inf").contains("robust.lateral_sigma_g"));
+        assert!(bad("[robust]\nspeed_noise = -1.0").contains("robust.speed_noise"));
+        assert!(bad("[robust]\ninit_speed_sigma = 0.0").contains("robust.init_speed_sigma"));
+        assert!(bad("[robust]\nvehicle_model = 1").contains("vehicle_model"));
         assert!(bad("[output]\nrate_id = 0x100").contains("output.rate_id"));
     }
 
