@@ -3,7 +3,6 @@
 //! socketcan's own dump reader beside ours for comparison.
 
 mod support;
-use support::raw_samples;
 use criterion::{black_box, criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use gyrocomp::adis::{builtin_profile, Assembler, InputIds, Push, RawFrame, Sample};
 use gyrocomp::candump::write_line;
@@ -11,6 +10,7 @@ use gyrocomp::config::Config;
 use gyrocomp::estimator::Estimator;
 use gyrocomp::pipeline::{NullSink, Pipeline};
 use gyrocomp::replay;
+use support::raw_samples;
 
 fn samples(n: u32) -> Vec<Sample> {
     let p = builtin_profile("adis16448").unwrap();
@@ -48,7 +48,9 @@ fn bench(c: &mut Criterion) {
 
     let mut g = c.benchmark_group("estimator");
     g.throughput(Throughput::Elements(1));
-    let paper = Config::parse("[estimator]\nmode = \"paper\"\nwarmup_s = 1.0\nlearn_s = 5.0\n[thermal]\np1 = [0.002, 0.0044, 0.0192]", "bench").unwrap();
+    let paper =
+        Config::parse("[estimator]\nmode = \"paper\"\nwarmup_s = 1.0\nlearn_s = 5.0\n[thermal]\np1 = [0.002, 0.0044, 0.0192]", "bench")
+            .unwrap();
     for (name, cfg) in [("step_default_robust", &cfg), ("step_paper", &paper)] {
         let mut est = Estimator::new(cfg);
         // steady state: past warm-up and learning

@@ -227,8 +227,7 @@ pub enum Drop {
 }
 
 impl Drop {
-    pub const ALL: [Drop; 6] =
-        [Drop::UnknownId, Drop::WrongDlc, Drop::Duplicate, Drop::OutOfOrder, Drop::Partial, Drop::Checksum];
+    pub const ALL: [Drop; 6] = [Drop::UnknownId, Drop::WrongDlc, Drop::Duplicate, Drop::OutOfOrder, Drop::Partial, Drop::Checksum];
     pub fn name(self) -> &'static str {
         match self {
             Drop::UnknownId => "unknown_id",
@@ -530,9 +529,18 @@ mod tests {
         let mut bad = frames(12);
         bad[1][0] ^= 0x40;
         assert_eq!(push_all(&mut a, &bad), Push::Dropped(Drop::Checksum));
-        assert_eq!(a.push(0, RawFrame { id: 0x100, extended: false, remote: false, fd: false, data: &[1, 2, 3, 4, 5] }), Push::Dropped(Drop::WrongDlc));
-        assert_eq!(a.push(0, RawFrame { id: 0x7ff, extended: false, remote: false, fd: false, data: &[0; 8] }), Push::Dropped(Drop::UnknownId));
-        assert_eq!(a.push(0, RawFrame { id: 0x100, extended: true, remote: false, fd: false, data: &[0; 8] }), Push::Dropped(Drop::UnknownId));
+        assert_eq!(
+            a.push(0, RawFrame { id: 0x100, extended: false, remote: false, fd: false, data: &[1, 2, 3, 4, 5] }),
+            Push::Dropped(Drop::WrongDlc)
+        );
+        assert_eq!(
+            a.push(0, RawFrame { id: 0x7ff, extended: false, remote: false, fd: false, data: &[0; 8] }),
+            Push::Dropped(Drop::UnknownId)
+        );
+        assert_eq!(
+            a.push(0, RawFrame { id: 0x100, extended: true, remote: false, fd: false, data: &[0; 8] }),
+            Push::Dropped(Drop::UnknownId)
+        );
         assert_eq!(a.counters.dropped(), 5);
     }
 

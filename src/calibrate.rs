@@ -208,16 +208,10 @@ pub fn read_run_from<R: io::Read>(input: R, name: &str, cfg: &Config) -> Result<
     }
     if run.bad_lines as f64 > MAX_BAD_FRACTION * run.lines as f64 {
         let (l, e) = first_bad.unwrap_or((0, String::new()));
-        return Err(bad(format!(
-            "corrupt: {} of {} lines unparseable (first at line {l}: {e})",
-            run.bad_lines, run.lines
-        )));
+        return Err(bad(format!("corrupt: {} of {} lines unparseable (first at line {l}: {e})", run.bad_lines, run.lines)));
     }
     if c.samples == 0 {
-        return Err(bad(format!(
-            "no complete sample in {} lines ({} frames; wrong [input] ids or profile?)",
-            run.lines, c.frames
-        )));
+        return Err(bad(format!("no complete sample in {} lines ({} frames; wrong [input] ids or profile?)", run.lines, c.frames)));
     }
     if run.checksum as f64 > MAX_BAD_FRACTION * (c.samples + c.checksum) as f64 {
         return Err(bad(format!("corrupt: {} of {} samples fail the checksum", run.checksum, c.samples + c.checksum)));
@@ -332,8 +326,7 @@ fn static_check(bins: &[Bin], rep: &mut RunReport) -> Vec<bool> {
         let run_med = median(&mut all);
         for j in 0..n {
             let d = dev[j].abs();
-            let sd_bad = (sd_med > 0.0 && bins[j].gyro_sd[i] > ROT_SD_RATIO * sd_med)
-                || (bins[j].gyro[i] - run_med).abs() > ROT_ABS_DPS;
+            let sd_bad = (sd_med > 0.0 && bins[j].gyro_sd[i] > ROT_SD_RATIO * sd_med) || (bins[j].gyro[i] - run_med).abs() > ROT_ABS_DPS;
             if d > thr || sd_bad {
                 moving[j] = true;
             }
@@ -449,8 +442,8 @@ impl Normal {
 /// Student t 97.5 % quantile.
 pub fn t975(dof: usize) -> f64 {
     const T: [f64; 30] = [
-        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145, 2.131, 2.120,
-        2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042,
+        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145, 2.131, 2.120, 2.110, 2.101,
+        2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042,
     ];
     match dof {
         0 => f64::NAN,
@@ -465,14 +458,7 @@ struct Prepared<'a> {
 }
 
 /// Columns: run intercepts (R), polynomial (order), then optional exponentials (R).
-fn accumulate(
-    runs: &[Prepared<'_>],
-    order: usize,
-    t0: f64,
-    scale: f64,
-    taus: Option<&[f64]>,
-    cut: &[f64],
-) -> Normal {
+fn accumulate(runs: &[Prepared<'_>], order: usize, t0: f64, scale: f64, taus: Option<&[f64]>, cut: &[f64]) -> Normal {
     let r_n = runs.len();
     let p = r_n + order + if taus.is_some() { r_n } else { 0 };
     let mut ne = Normal::new(p);
@@ -546,10 +532,7 @@ pub fn calibrate_runs(runs: &[Run], order: u8, t0: f64) -> Result<Calibration, C
         reports.push(rep);
         prep.push(Prepared { bins: &run.bins, keep });
     }
-    let scale = prep
-        .iter()
-        .flat_map(|p| p.bins.iter().map(|b| (b.temp - t0).abs()))
-        .fold(1.0f64, f64::max);
+    let scale = prep.iter().flat_map(|p| p.bins.iter().map(|b| (b.temp - t0).abs())).fold(1.0f64, f64::max);
 
     // Noise per axis: robust scatter of first differences of kept bins.
     let mut w = [1.0; 3];
@@ -968,9 +951,7 @@ impl Calibration {
         let grey = RGBColor(190, 190, 190);
         for (k, (used_pts, cut_pts)) in series.iter().enumerate() {
             let c = Palette99::pick(k).to_rgba();
-            chart
-                .draw_series(cut_pts.iter().map(|&(x, y)| Circle::new((x, y), 2, grey.filled())))
-                .map_err(|x| e(&x))?;
+            chart.draw_series(cut_pts.iter().map(|&(x, y)| Circle::new((x, y), 2, grey.filled()))).map_err(|x| e(&x))?;
             chart
                 .draw_series(used_pts.iter().map(move |&(x, y)| Circle::new((x, y), 2, c.filled())))
                 .map_err(|x| e(&x))?
@@ -1041,12 +1022,7 @@ impl Calibration {
             .map_err(|x| e(&x))?
             .label("cut")
             .legend(|(x, y)| PathElement::new(vec![(x - 10, y), (x + 10, y)], BLACK.stroke_width(2)));
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|x| e(&x))?;
+        chart.configure_series_labels().background_style(WHITE.mix(0.85)).border_style(BLACK).draw().map_err(|x| e(&x))?;
         root.present().map_err(|x| e(&x))?;
         Ok(())
     }

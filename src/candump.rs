@@ -64,7 +64,7 @@ fn hex(c: u8) -> Option<u8> {
 
 #[inline]
 fn hex_bytes(s: &[u8], out: &mut [u8; 64], max: usize) -> Result<usize, LineError> {
-    if s.len() % 2 != 0 || s.len() / 2 > max {
+    if !s.len().is_multiple_of(2) || s.len() / 2 > max {
         return Err(LineError::Data);
     }
     for (i, pair) in s.chunks_exact(2).enumerate() {

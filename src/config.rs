@@ -361,8 +361,7 @@ impl Config {
 
     /// Parse and validate config text; `origin` names it in errors.
     pub fn parse(text: &str, origin: &str) -> Result<Config, ConfigError> {
-        let cfg: Config =
-            toml::from_str(text).map_err(|e| ConfigError::Parse { path: origin.into(), msg: e.to_string() })?;
+        let cfg: Config = toml::from_str(text).map_err(|e| ConfigError::Parse { path: origin.into(), msg: e.to_string() })?;
         cfg.validate().map_err(|(key, msg)| ConfigError::Invalid { path: origin.into(), key, msg })?;
         Ok(cfg)
     }
@@ -483,10 +482,7 @@ impl Config {
         band("switching.inner", s.inner)?;
         band("switching.outer", s.outer)?;
         if !(s.outer[0] <= s.inner[0] && s.inner[1] <= s.outer[1]) {
-            return err(
-                "switching.inner",
-                format!("inner band {:?} must lie inside the outer band {:?}", s.inner, s.outer),
-            );
+            return err("switching.inner", format!("inner band {:?} must lie inside the outer band {:?}", s.inner, s.outer));
         }
         if !(s.inner[0] <= 1.0 && 1.0 <= s.inner[1]) {
             return err("switching.inner", format!("inner band {:?} must contain 1.0 (|a| = g0)", s.inner));

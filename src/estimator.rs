@@ -506,7 +506,17 @@ impl Estimator {
     /// One sample of `mode = "robust"`; returns the mode (0 fusion with
     /// bias learning, 1 accelerometer-aided without bias learning, 2 gyro only).
     #[allow(clippy::too_many_arguments)]
-    fn step_robust(&mut self, s: &Sample, omega: &Vector3<f64>, dt: f64, db: &Vector3<f64>, jerk: bool, warm: bool, resync: bool, fl: &mut u16) -> u8 {
+    fn step_robust(
+        &mut self,
+        s: &Sample,
+        omega: &Vector3<f64>,
+        dt: f64,
+        db: &Vector3<f64>,
+        jerk: bool,
+        warm: bool,
+        resync: bool,
+        fl: &mut u16,
+    ) -> u8 {
         let rb = &mut self.robust;
         if !rb.on {
             // first sample (or a restart): the filters start from the EKF's start
@@ -743,21 +753,21 @@ mod tests {
         // robust: the z bias has its own yaw filter, whose loop with the
         // magnetometer settles more slowly (about a minute, not 40 s)
         for (mode, secs) in [("paper", 40.0), ("robust", 120.0)] {
-        let c = cfg(&format!("[estimator]\nmode = \"{mode}\"\nwarmup_s = 2.0\nlearn_s = 20.0"));
-        let mut e = Estimator::new(&c);
-        let bias = [0.3, -0.2, 0.45];
-        let mut last = Estimate::default();
-        for k in 0..(204.8 * secs) as u32 {
-            last = e.step(&rest(k as u16, bias, 30.0, 25.0));
-        }
-        for i in 0..3 {
-            assert!((last.bias[i] - bias[i]).abs() < 0.01, "axis {i}: {:?}", last.bias);
-            assert!(last.rate[i].abs() < 0.01);
-        }
-        assert!(last.roll.abs() < 0.05 && last.pitch.abs() < 0.05);
-        assert!((last.yaw - 30.0).abs() < 0.2, "yaw {}", last.yaw);
-        assert_eq!(last.mode, 0);
-        assert_eq!(last.flags & (flags::WARMUP | flags::LEARNING), 0);
+            let c = cfg(&format!("[estimator]\nmode = \"{mode}\"\nwarmup_s = 2.0\nlearn_s = 20.0"));
+            let mut e = Estimator::new(&c);
+            let bias = [0.3, -0.2, 0.45];
+            let mut last = Estimate::default();
+            for k in 0..(204.8 * secs) as u32 {
+                last = e.step(&rest(k as u16, bias, 30.0, 25.0));
+            }
+            for i in 0..3 {
+                assert!((last.bias[i] - bias[i]).abs() < 0.01, "axis {i}: {:?}", last.bias);
+                assert!(last.rate[i].abs() < 0.01);
+            }
+            assert!(last.roll.abs() < 0.05 && last.pitch.abs() < 0.05);
+            assert!((last.yaw - 30.0).abs() < 0.2, "yaw {}", last.yaw);
+            assert_eq!(last.mode, 0);
+            assert_eq!(last.flags & (flags::WARMUP | flags::LEARNING), 0);
         }
     }
 

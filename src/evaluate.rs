@@ -22,8 +22,8 @@
 use crate::adis::{InputIds, RawFrame};
 use crate::config::{Config, Mode};
 use crate::estimator::Estimate;
-use crate::pipeline::{Pipeline, Sink};
 use crate::output::OutFrame;
+use crate::pipeline::{Pipeline, Sink};
 use crate::replay::{replay_files, ReplayFiles};
 use crate::sim::model::{GyroInput, SensorModel};
 use crate::sim::motion::{c_nb, wrap180};
@@ -82,7 +82,8 @@ impl RunData {
         let mut est = Vec::with_capacity(self.truth.len());
         match &self.source {
             Source::Log(p) => {
-                let sum = replay_files(cfg, &ReplayFiles { input: p, output: None, csv: None }, Some(&mut est)).map_err(|e| e.to_string())?;
+                let sum =
+                    replay_files(cfg, &ReplayFiles { input: p, output: None, csv: None }, Some(&mut est)).map_err(|e| e.to_string())?;
                 Ok((est, sum.mode_seconds))
             }
             Source::Frames(fr) => {
@@ -134,10 +135,7 @@ impl Metrics {
 
 /// Errors of the estimate against the truth, per sample: (t, [roll, pitch, yaw]).
 pub fn errors(data: &RunData, est: &[Estimate]) -> Vec<(f64, [f64; 3])> {
-    est.iter()
-        .zip(&data.truth)
-        .map(|(e, t)| (t.t, [wrap180(e.roll - t.att[0]), e.pitch - t.att[1], wrap180(e.yaw - t.att[2])]))
-        .collect()
+    est.iter().zip(&data.truth).map(|(e, t)| (t.t, [wrap180(e.roll - t.att[0]), e.pitch - t.att[1], wrap180(e.yaw - t.att[2])])).collect()
 }
 
 pub fn score(name: &str, data: &RunData, est: &[Estimate], mode_seconds: [f64; 3], from: f64) -> Metrics {
@@ -307,12 +305,15 @@ pub struct EvalOptions {
     pub out: Option<PathBuf>,
 }
 
+/// Per sample: time (s) and the roll/pitch/yaw error (deg).
+type ErrorRow = (f64, [f64; 3]);
+
 /// Evaluate one simulated directory; returns the printed table.
 pub fn evaluate_dir(cfg: &Config, dir: &Path, o: &EvalOptions) -> Result<String, String> {
     let data = RunData::load(dir)?;
     let mut out = String::new();
     let mut metrics = Vec::new();
-    let mut first: Option<(Vec<Estimate>, Vec<(f64, [f64; 3])>)> = None;
+    let mut first: Option<(Vec<Estimate>, Vec<ErrorRow>)> = None;
     for (name, c) in cases(cfg, o.ablation) {
         let (est, ms) = data.estimates(&c)?;
         if est.len() != data.truth.len() {
@@ -556,10 +557,7 @@ mod plot {
             ch.draw_series(LineSeries::new(est.iter().step_by(step).map(|e| (e.t, e.bias[i])), col.stroke_width(2)))?
                 .label(format!("estimate {name}"))
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(2)));
-            ch.draw_series(LineSeries::new(
-                data.truth.iter().zip(&data.bias).step_by(step).map(|(t, b)| (t.t, b[i])),
-                col.mix(0.5),
-            ))?;
+            ch.draw_series(LineSeries::new(data.truth.iter().zip(&data.bias).step_by(step).map(|(t, b)| (t.t, b[i])), col.mix(0.5)))?;
         }
         ch.configure_series_labels().border_style(BLACK).background_style(WHITE).draw()?;
         root.present()?;

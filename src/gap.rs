@@ -68,8 +68,8 @@
 
 use crate::adis::{builtin_profile, Assembler, InputIds, Profile};
 use crate::sim::model::{
-    Effect, GSensitivity, GyroInput, GyroModel, Misalignment, ScaleFactor, SensorModel, ThermalLinear, ThermalQuadratic,
-    ThermalRate, TimeDelay, TurnOnBias, WarmupTransient,
+    Effect, GSensitivity, GyroInput, GyroModel, Misalignment, ScaleFactor, SensorModel, ThermalLinear, ThermalQuadratic, ThermalRate,
+    TimeDelay, TurnOnBias, WarmupTransient,
 };
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
@@ -230,12 +230,7 @@ pub fn read_truth(path: &Path) -> Result<(Vec<TruthIn>, bool), String> {
                 return Err(format!("{}:{no}: time {} is not after the previous row's {}", path.display(), v[0], p.t));
             }
         }
-        out.push(TruthIn {
-            t: v[0],
-            rate: [v[4], v[5], v[6]],
-            f: [v[7], v[8], v[9]],
-            temp: if has_temp { v[10] } else { f64::NAN },
-        });
+        out.push(TruthIn { t: v[0], rate: [v[4], v[5], v[6]], f: [v[7], v[8], v[9]], temp: if has_temp { v[10] } else { f64::NAN } });
     }
     if out.len() < 2 {
         return Err(format!("{}: fewer than 2 data rows", path.display()));
@@ -354,9 +349,7 @@ fn all_terms(e: Effect) -> Vec<Term> {
     match e {
         Effect::TimeDelay => vec![Term { effect: e, axis: 3, col: 0 }],
         Effect::GSensitivity => (0..9).map(|k| Term { effect: e, axis: k / 3, col: k % 3 }).collect(),
-        Effect::Misalignment => {
-            (0..9).filter(|k| k / 3 != k % 3).map(|k| Term { effect: e, axis: k / 3, col: k % 3 }).collect()
-        }
+        Effect::Misalignment => (0..9).filter(|k| k / 3 != k % 3).map(|k| Term { effect: e, axis: k / 3, col: k % 3 }).collect(),
         _ => (0..3).map(|a| Term { effect: e, axis: a, col: 0 }).collect(),
     }
 }
@@ -371,8 +364,7 @@ const V_WD: usize = 9;
 const NVAR: usize = 12;
 const VAR_NAMES: [&str; NVAR] =
     ["time", "temperature", "dT/dt", "f_x", "f_y", "f_z", "rate_x", "rate_y", "rate_z", "rate_dot_x", "rate_dot_y", "rate_dot_z"];
-const VAR_UNITS: [&str; NVAR] =
-    ["s", "degC", "degC/s", "g", "g", "g", "deg/s", "deg/s", "deg/s", "deg/s^2", "deg/s^2", "deg/s^2"];
+const VAR_UNITS: [&str; NVAR] = ["s", "degC", "degC/s", "g", "g", "g", "deg/s", "deg/s", "deg/s", "deg/s^2", "deg/s^2", "deg/s^2"];
 
 /// Mean of the samples in one fit bin.
 #[derive(Clone, Copy, Debug, Default)]
@@ -499,8 +491,7 @@ impl Data {
         let mut yty_axis = [0.0; 3];
         let mut x = vec![0.0; p];
         // terms touching each axis
-        let idx: Vec<Vec<usize>> =
-            (0..3).map(|a| (0..p).filter(|&k| terms[k].axis == a || terms[k].axis == 3).collect()).collect();
+        let idx: Vec<Vec<usize>> = (0..3).map(|a| (0..p).filter(|&k| terms[k].axis == a || terms[k].axis == 3).collect()).collect();
         for b in &self.bins {
             let fo = b.fold;
             for a in 0..3 {
@@ -745,12 +736,7 @@ pub struct GapResult {
 }
 
 /// Join measured and truth on time; build the fit bins.
-fn build_data(
-    meas: &[MeasRow],
-    truth: &[TruthIn],
-    truth_has_temp: bool,
-    base: &GyroModel,
-) -> Result<(Data, Vec<[f64; 3]>), String> {
+fn build_data(meas: &[MeasRow], truth: &[TruthIn], truth_has_temp: bool, base: &GyroModel) -> Result<(Data, Vec<[f64; 3]>), String> {
     let t0 = truth[0].t;
     let dt = (truth[truth.len() - 1].t - t0) / (truth.len() - 1) as f64;
     if dt.is_nan() || dt <= 0.0 {
@@ -1023,7 +1009,9 @@ fn evaluate(data: &Data, cur: &Fit, term: Term, sigma_bin: f64) -> Option<Cand> 
                     size: 0.0,
                     r2: 1.0,
                     se: f64::INFINITY,
-                    identifiable: Err("not separable with this data: its regressor is zero or exactly collinear with the current model".into()),
+                    identifiable: Err(
+                        "not separable with this data: its regressor is zero or exactly collinear with the current model".into()
+                    ),
                 })
             }
         }
@@ -1047,14 +1035,9 @@ fn evaluate(data: &Data, cur: &Fit, term: Term, sigma_bin: f64) -> Option<Cand> 
     // residual's own level would count effects not yet modelled as noise)
     let se = sigma_bin * fit.inv[(k, k)].sqrt();
     let identifiable = if term.effect == Effect::TimeDelay && fit.beta[k] < 0.0 {
-        Err(format!(
-            "the measured rate leads the truth ({:.2e} s): not a time_delay (the vocabulary has no lead)",
-            fit.beta[k]
-        ))
+        Err(format!("the measured rate leads the truth ({:.2e} s): not a time_delay (the vocabulary has no lead)", fit.beta[k]))
     } else if r2 > COLLINEAR_R2 {
-        Err(format!(
-            "not separable with this data: its regressor is collinear with the current model's (R^2 = {r2:.4})"
-        ))
+        Err(format!("not separable with this data: its regressor is collinear with the current model's (R^2 = {r2:.4})"))
     } else if term.plausible() / se < 3.0 {
         Err(format!(
             "not separable with this data: too little excitation (standard error {se:.3e} {} against a plausible size {:.1e})",
@@ -1110,7 +1093,6 @@ pub struct PlotData {
     /// per finding: the term, the localisation variable points before/after (x, r)
     finds: Vec<(String, usize, String, Localisation, Localisation)>,
 }
-
 
 /// The workflow on data in memory. Outputs are not written.
 pub fn analyse(
@@ -1228,9 +1210,7 @@ pub fn analyse(
                 continue;
             }
             // a rival with more parameters that Occam set aside (same prediction in practice)
-            if nested(best, c)
-                && data.diff_rms_1s(&c.fit, &best.fit).iter().cloned().fold(0.0, f64::max) < SIZE_MIN * floor
-            {
+            if nested(best, c) && data.diff_rms_1s(&c.fit, &best.fit).iter().cloned().fold(0.0, f64::max) < SIZE_MIN * floor {
                 continue;
             }
             let tau = if best.term.effect == Effect::WarmupTransient { best.fit.tau } else { c.fit.tau };
@@ -1409,9 +1389,7 @@ fn extended_model(base: &SensorModel, fit: &Fit, findings: &[Finding]) -> Sensor
             Effect::GSensitivity => g.g_sensitivity = Some(GSensitivity { g: m33(e) }),
             Effect::ScaleFactor => g.scale_factor = Some(ScaleFactor { k: v3(e) }),
             Effect::Misalignment => g.misalignment = Some(Misalignment { m: m33(e) }),
-            Effect::TimeDelay => {
-                g.time_delay = Some(TimeDelay { delay_s: coef_of(fit, &Term { effect: e, axis: 3, col: 0 }).max(0.0) })
-            }
+            Effect::TimeDelay => g.time_delay = Some(TimeDelay { delay_s: coef_of(fit, &Term { effect: e, axis: 3, col: 0 }).max(0.0) }),
         }
     }
     g.effects = effects;
@@ -1607,20 +1585,13 @@ fn plot_finding(path: &Path, f: &(String, usize, String, Localisation, Localisat
     }
     let m = all.iter().map(|p| p.1.abs()).fold(1e-4, f64::max) * 1.1;
     let mut ch = ChartBuilder::on(&root)
-        .caption(
-            format!("{label}: gyro {} residual vs {} (decile means)", AX[*axis], before.variable),
-            ("sans-serif", 18),
-        )
+        .caption(format!("{label}: gyro {} residual vs {} (decile means)", AX[*axis], before.variable), ("sans-serif", 18))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(70)
         .build_cartesian_2d(x0..x1, -m..m)
         .map_err(|x| e(&x))?;
-    ch.configure_mesh()
-        .x_desc(format!("{}, {}", before.variable, before.unit))
-        .y_desc("mean residual, deg/s")
-        .draw()
-        .map_err(|x| e(&x))?;
+    ch.configure_mesh().x_desc(format!("{}, {}", before.variable, before.unit)).y_desc("mean residual, deg/s").draw().map_err(|x| e(&x))?;
     for (loc, c, name) in [(before, RED, "before"), (after, BLUE, "after")] {
         let pts: Vec<(f64, f64)> = loc.bins.iter().map(|b| (b.0, b.1)).collect();
         ch.draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))

@@ -134,7 +134,7 @@ pub fn run<R: Read, S: Sink>(pipe: &mut Pipeline, input: R, sink: &mut S) -> io:
     while let Some(line) = rd.next_line()? {
         sum.lines += 1;
         let parsed = match line {
-            Ok(l) if l.is_empty() => {
+            Ok([]) => {
                 sum.lines -= 1;
                 continue;
             }
@@ -143,11 +143,7 @@ pub fn run<R: Read, S: Sink>(pipe: &mut Pipeline, input: R, sink: &mut S) -> io:
         };
         match parsed {
             Ok(f) if f.error => sum.error_frames += 1,
-            Ok(f) => pipe.push(
-                f.t_us,
-                RawFrame { id: f.id, extended: f.extended, remote: f.remote, fd: f.fd, data: f.payload() },
-                sink,
-            ),
+            Ok(f) => pipe.push(f.t_us, RawFrame { id: f.id, extended: f.extended, remote: f.remote, fd: f.fd, data: f.payload() }, sink),
             Err(e) => sum.bad_line(rd.line_no, e),
         }
     }
@@ -171,7 +167,7 @@ fn parse_into<R: Read>(input: R, tx: std::sync::mpsc::SyncSender<Vec<Item>>, bac
     let mut batch = Vec::with_capacity(BATCH);
     while let Some(line) = rd.next_line()? {
         let item = match line {
-            Ok(l) if l.is_empty() => continue,
+            Ok([]) => continue,
             Ok(l) => match parse_line(l) {
                 Ok(f) if f.error => Item::ErrorFrame,
                 Ok(f) => {
@@ -372,8 +368,7 @@ pub fn replay_files(cfg: &Config, files: &ReplayFiles<'_>, keep: Option<&mut Vec
     let mut csv = match files.csv {
         Some(p) => {
             let mut w = create(p)?;
-            w.write_all(CSV_HEADER.as_bytes())
-                .map_err(|source| ReplayError::Output { path: p.display().to_string(), source })?;
+            w.write_all(CSV_HEADER.as_bytes()).map_err(|source| ReplayError::Output { path: p.display().to_string(), source })?;
             Some(w)
         }
         None => None,

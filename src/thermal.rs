@@ -55,16 +55,7 @@ impl Thermal {
 
     /// The paper's linear curve, unbounded.
     pub fn linear(t0: f64, p1: [f64; 3], p2: [f64; 3]) -> Thermal {
-        Thermal {
-            t0,
-            p1,
-            p2,
-            p3: [0.0; 3],
-            p4: [0.0; 3],
-            order: 1,
-            t_min: f64::NEG_INFINITY,
-            t_max: f64::INFINITY,
-        }
+        Thermal { t0, p1, p2, p3: [0.0; 3], p4: [0.0; 3], order: 1, t_min: f64::NEG_INFINITY, t_max: f64::INFINITY }
     }
 
     /// True when `t` lies outside the calibrated range (the curve is clamped there).
@@ -194,11 +185,7 @@ impl SlopeLearner {
     /// Start a new power cycle from a saved state. Returns false (and keeps
     /// nothing) when the state is for another configured slope or is not sane.
     pub fn restore(&mut self, s: &SlopeState) -> bool {
-        let sane = s.stt.is_finite()
-            && s.stt >= 0.0
-            && s.sty.iter().all(|v| v.is_finite())
-            && s.spread.is_finite()
-            && s.spread >= 0.0;
+        let sane = s.stt.is_finite() && s.stt >= 0.0 && s.sty.iter().all(|v| v.is_finite()) && s.spread.is_finite() && s.spread >= 0.0;
         if !sane || s.base != self.past.base {
             return false;
         }
@@ -216,7 +203,7 @@ impl SlopeLearner {
     /// axis, weight `w` (seconds of data it stands for).
     #[inline]
     pub fn push(&mut self, t: f64, y: [f64; 3], w: f64) {
-        if !(w.is_finite() && w > 0.0) || !t.is_finite() || !y.iter().all(|v| v.is_finite()) {
+        if !(w.is_finite() && w > 0.0 && t.is_finite() && y.iter().all(|v| v.is_finite())) {
             return;
         }
         let w1 = self.w + w;

@@ -278,7 +278,12 @@ mod tests {
         got.predict(&omega, bz, fx, dt, &ProcessNoise { gyro: 0.0, bias: 0.0, speed: 0.0 }, [0.0; 2]);
         for i in 0..5 {
             for j in 0..5 {
-                assert!((got.p[i][j] - want[i][j]).abs() < 1e-9 * (1.0 + want[i][j].abs()), "P[{i}][{j}] {} vs {}", got.p[i][j], want[i][j]);
+                assert!(
+                    (got.p[i][j] - want[i][j]).abs() < 1e-9 * (1.0 + want[i][j].abs()),
+                    "P[{i}][{j}] {} vs {}",
+                    got.p[i][j],
+                    want[i][j]
+                );
             }
         }
     }

@@ -3,9 +3,9 @@
 use gyrocomp::adis::RawSample;
 use gyrocomp::calibrate::{calibrate_files, calibrate_runs, read_run, read_run_from, CalError, ChamberRun};
 use gyrocomp::candump::LogWriter;
-use rand::{Rng, SeedableRng};
 use gyrocomp::config::{Config, ThermalConfig};
 use gyrocomp::thermal::Thermal;
+use rand::{Rng, SeedableRng};
 use std::path::{Path, PathBuf};
 
 /// 10 Hz keeps the logs small (the noise density, not the rate, sets the
@@ -108,7 +108,13 @@ fn second_and_third_order_curves() {
             assert_eq!(a.coeffs.len(), order as usize);
             assert!(((a.coeffs[0] - th.p1[i]) / th.p1[i]).abs() < 0.05, "order {order} axis {i}: p1 {:?}", a.coeffs);
             for k in 0..order as usize {
-                assert!((a.coeffs[k] - want[k][i]).abs() < a.ci[k], "order {order} axis {i} coeff {k}: {} +- {} vs {}", a.coeffs[k], a.ci[k], want[k][i]);
+                assert!(
+                    (a.coeffs[k] - want[k][i]).abs() < a.ci[k],
+                    "order {order} axis {i} coeff {k}: {} +- {} vs {}",
+                    a.coeffs[k],
+                    a.ci[k],
+                    want[k][i]
+                );
             }
             // the whole curve's shape over the calibrated range, within 0.01 deg/s
             for t in [6.0, 15.0, 30.0, 45.0, 60.0, 74.0] {
@@ -193,7 +199,8 @@ fn corrupt_empty_and_missing_logs_are_reported_not_fitted() {
     let text = std::fs::read_to_string(&good).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     // 5 % of the lines mangled
-    let mangled: String = lines.iter().enumerate().map(|(k, l)| if k % 20 == 3 { format!("{}ZZ\n", &l[..l.len() - 2]) } else { format!("{l}\n") }).collect();
+    let mangled: String =
+        lines.iter().enumerate().map(|(k, l)| if k % 20 == 3 { format!("{}ZZ\n", &l[..l.len() - 2]) } else { format!("{l}\n") }).collect();
     let garbled = dir.path().join("garbled.log");
     std::fs::write(&garbled, mangled).unwrap();
     // 5 % of the gyro frames with a flipped bit: the lines parse, the checksums fail
@@ -279,14 +286,8 @@ fn command_line_writes_config_and_svg_plots() {
     let bad = dir.path().join("bad.log");
     std::fs::write(&bad, "not a candump log\n".repeat(50)).unwrap();
     let out2 = dir.path().join("thermal2.toml");
-    let o = std::process::Command::new(exe)
-        .args(["calibrate", "--input"])
-        .arg(&files[0])
-        .arg(&bad)
-        .arg("--write")
-        .arg(&out2)
-        .output()
-        .unwrap();
+    let o =
+        std::process::Command::new(exe).args(["calibrate", "--input"]).arg(&files[0]).arg(&bad).arg("--write").arg(&out2).output().unwrap();
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("bad.log") && err.contains("corrupt"), "{err}");

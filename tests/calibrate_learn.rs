@@ -120,7 +120,8 @@ fn learned_slope_ends_within_10_percent_and_gyro_only_error_drops() {
     }
     // the state goes with the configured slope it was learned against: other
     // settings may change, another p1 makes it void
-    let mut same = Estimator::new(&Config::parse(&cfg_with(true, TRUE_P1.map(|v| 0.7 * v), "p2 = [0.0, 0.0, 0.1]\nt_max = 99.0\n"), "t").unwrap());
+    let mut same =
+        Estimator::new(&Config::parse(&cfg_with(true, TRUE_P1.map(|v| 0.7 * v), "p2 = [0.0, 0.0, 0.1]\nt_max = 99.0\n"), "t").unwrap());
     assert!(same.set_slope_state(&st));
     let mut other = Estimator::new(&Config::parse(&cfg_with(true, [0.001; 3], ""), "t").unwrap());
     assert!(!other.set_slope_state(&st));
@@ -150,4 +151,3 @@ fn the_learned_slope_is_bounded() {
     let (on, _) = run(&text, 3000.0, 3);
     assert!((on.slope[2] - (0.7 * TRUE_P1[2] + 0.001)).abs() < 1e-12, "{:?}", on.slope);
 }
-

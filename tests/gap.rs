@@ -107,12 +107,7 @@ fn found<'a>(r: &'a GapResult, effect: &str, axis: &str, truth: f64) -> &'a Find
         f.rms_before[a],
         f.rms_after[a]
     );
-    assert!(
-        ((f.coefficient - truth) / truth).abs() <= 0.10,
-        "{effect} {axis}: coefficient {} vs true {truth}\n{}",
-        f.coefficient,
-        show(r)
-    );
+    assert!(((f.coefficient - truth) / truth).abs() <= 0.10, "{effect} {axis}: coefficient {} vs true {truth}\n{}", f.coefficient, show(r));
     f
 }
 

@@ -47,7 +47,11 @@ fn log_in_report_and_model_out_model_accepted_back() {
     let p = d.path();
     std::fs::write(p.join("hidden.toml"), HIDDEN).unwrap();
     std::fs::write(p.join("paper.toml"), PAPER).unwrap();
-    ok(exe().args(["simulate", "--scenario", "vehicle", "--seed", "1", "--duration", "800", "--model"]).arg(p.join("hidden.toml")).arg("--out").arg(p.join("sim")));
+    ok(exe()
+        .args(["simulate", "--scenario", "vehicle", "--seed", "1", "--duration", "800", "--model"])
+        .arg(p.join("hidden.toml"))
+        .arg("--out")
+        .arg(p.join("sim")));
     let out = ok(&mut gap(&p.join("sim/imu.log"), &p.join("sim/truth.csv"), &p.join("paper.toml"), &p.join("gap")));
     assert!(out.contains("found scale_factor z"), "{out}");
     let rep: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(p.join("gap/report.json")).unwrap()).unwrap();
@@ -73,7 +77,11 @@ fn log_in_report_and_model_out_model_accepted_back() {
     let md = std::fs::read_to_string(p.join("gap/report.md")).unwrap();
     assert!(md.contains("scale_factor z"), "{md}");
     // the extended model is accepted as it is by simulate --model ...
-    ok(exe().args(["simulate", "--scenario", "vehicle", "--seed", "2", "--duration", "60", "--model"]).arg(p.join("gap/model.toml")).arg("--out").arg(p.join("sim2")));
+    ok(exe()
+        .args(["simulate", "--scenario", "vehicle", "--seed", "2", "--duration", "60", "--model"])
+        .arg(p.join("gap/model.toml"))
+        .arg("--out")
+        .arg(p.join("sim2")));
     // ... and by gap --model: on the same data, nothing is missing any more
     let out = ok(&mut gap(&p.join("sim/imu.log"), &p.join("sim/truth.csv"), &p.join("gap/model.toml"), &p.join("gap2")));
     assert!(out.contains("clean"), "{out}");
@@ -89,7 +97,11 @@ fn csv_measured_and_truth_without_temp() {
     let p = d.path();
     std::fs::write(p.join("hidden.toml"), HIDDEN).unwrap();
     std::fs::write(p.join("paper.toml"), PAPER).unwrap();
-    ok(exe().args(["simulate", "--scenario", "vehicle", "--seed", "3", "--duration", "600", "--model"]).arg(p.join("hidden.toml")).arg("--out").arg(p.join("sim")));
+    ok(exe()
+        .args(["simulate", "--scenario", "vehicle", "--seed", "3", "--duration", "600", "--model"])
+        .arg(p.join("hidden.toml"))
+        .arg("--out")
+        .arg(p.join("sim")));
     let log = std::fs::read(p.join("sim/imu.log")).unwrap();
     let prof = gyrocomp::adis::builtin_profile("adis16448").unwrap();
     let mut asm = gyrocomp::adis::Assembler::new(prof, gyrocomp::adis::InputIds::DEFAULT);
@@ -134,7 +146,8 @@ fn bad_input_is_named() {
     let e = fails(&mut gap(&log, &truth, &p.join("bad.toml"), &out));
     assert!(e.contains("bad.toml") && e.contains("warp_drive"), "{e}");
     // unknown key in an effect table
-    std::fs::write(p.join("bad2.toml"), "[gyro]\neffects = [\"turn_on_bias\"]\n[gyro.turn_on_bias]\nbias = [0, 0, 0]\nscale = 1\n").unwrap();
+    std::fs::write(p.join("bad2.toml"), "[gyro]\neffects = [\"turn_on_bias\"]\n[gyro.turn_on_bias]\nbias = [0, 0, 0]\nscale = 1\n")
+        .unwrap();
     let e = fails(&mut gap(&log, &truth, &p.join("bad2.toml"), &out));
     assert!(e.contains("bad2.toml") && e.contains("scale"), "{e}");
     // malformed truth CSV: file and line
@@ -153,7 +166,8 @@ fn bad_input_is_named() {
     let e = fails(&mut gap(&p.join("junk.log"), &truth, &model, &out));
     assert!(e.contains("junk.log:1"), "{e}");
     // measured and truth that do not overlap in time
-    std::fs::write(p.join("late.csv"), "t,gx,gy,gz,ax,ay,az,mx,my,mz,temp\n1000,0,0,0,0,0,0,0,0,0,25\n1000.1,0,0,0,0,0,0,0,0,0,25\n").unwrap();
+    std::fs::write(p.join("late.csv"), "t,gx,gy,gz,ax,ay,az,mx,my,mz,temp\n1000,0,0,0,0,0,0,0,0,0,25\n1000.1,0,0,0,0,0,0,0,0,0,25\n")
+        .unwrap();
     let e = fails(&mut gap(&p.join("late.csv"), &truth, &model, &out));
     assert!(e.contains("line up"), "{e}");
 }

@@ -193,7 +193,10 @@ fn threaded_replay_writes_the_same_bytes_as_single_threaded() {
     };
     let (a, ac, asum) = go(false);
     let (b, bc, bsum) = go(true);
-    assert!(asum.contains("(bad 1)") && asum.contains("error frames 1") && asum.contains("wrong_dlc 1") && asum.contains("unknown_id 3"), "{asum}");
+    assert!(
+        asum.contains("(bad 1)") && asum.contains("error frames 1") && asum.contains("wrong_dlc 1") && asum.contains("unknown_id 3"),
+        "{asum}"
+    );
     assert_eq!(asum, bsum);
     assert_eq!(ac, bc);
     assert!(a == b, "output logs differ");

@@ -14,11 +14,8 @@ fn unit_runs_under_systemd_with_watchdog_restart_and_state() {
     let feed = d.path().join("feed.log");
     std::fs::write(&feed, common::gentle_log(204 * 10, [0.25, -0.15, 0.2], 1_700_000_000_000_000)).unwrap();
     let cfg = d.path().join("gyrocomp.toml");
-    std::fs::write(
-        &cfg,
-        "[can]\ninterface = \"vcan0\"\n[estimator]\nwarmup_s = 1.0\nlearn_s = 2.0\n[daemon]\nsave_every_s = 1.0\n",
-    )
-    .unwrap();
+    std::fs::write(&cfg, "[can]\ninterface = \"vcan0\"\n[estimator]\nwarmup_s = 1.0\nlearn_s = 2.0\n[daemon]\nsave_every_s = 1.0\n")
+        .unwrap();
     let check = d.path().join("check.sh");
     std::fs::write(
         &check,
@@ -95,7 +92,15 @@ echo "CHECK: all ok"
         .expect("bash tests/vm/systemd.sh");
     let text = format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
     assert!(o.status.success(), "systemd VM run failed:\n{text}");
-    for want in ["CHECK: active via READY=1", "CHECK: state saved", "CHECK: watchdog timeout logged", "CHECK: state loaded after restart", "CHECK: reloaded", "CHECK: bad reload refused, old config kept", "CHECK: all ok"] {
+    for want in [
+        "CHECK: active via READY=1",
+        "CHECK: state saved",
+        "CHECK: watchdog timeout logged",
+        "CHECK: state loaded after restart",
+        "CHECK: reloaded",
+        "CHECK: bad reload refused, old config kept",
+        "CHECK: all ok",
+    ] {
         assert!(text.contains(want), "missing {want:?}:\n{text}");
     }
 }

@@ -44,14 +44,26 @@ fn vm(script: &str, adds: &[(&Path, &str)], collects: &[(&str, &Path)], timeout:
 /// (id, payload) of every frame of a candump log, in order.
 fn frames(p: &Path) -> Vec<(u32, Vec<u8>)> {
     let t = std::fs::read_to_string(p).unwrap();
-    t.lines().filter(|l| !l.is_empty()).map(|l| {
-        let f = parse_line(l.as_bytes()).unwrap_or_else(|e| panic!("{}: {e}: {l}", p.display()));
-        (f.id, f.payload().to_vec())
-    }).collect()
+    t.lines()
+        .filter(|l| !l.is_empty())
+        .map(|l| {
+            let f = parse_line(l.as_bytes()).unwrap_or_else(|e| panic!("{}: {e}: {l}", p.display()));
+            (f.id, f.payload().to_vec())
+        })
+        .collect()
 }
 
 fn replay(cfg: &Path, input: &Path, out: &Path) -> String {
-    let o = Command::new(common::bin()).arg("replay").arg("--config").arg(cfg).arg("--input").arg(input).arg("--output").arg(out).output().unwrap();
+    let o = Command::new(common::bin())
+        .arg("replay")
+        .arg("--config")
+        .arg(cfg)
+        .arg("--input")
+        .arg(input)
+        .arg("--output")
+        .arg(out)
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&o.stderr).to_string();
     assert!(o.status.success(), "{err}");
     err
@@ -132,7 +144,11 @@ fn fault_log(cnt0: u16) -> Vec<u8> {
 fn live_equals_replay_and_faults_are_survived() {
     let d = tempfile::tempdir().unwrap();
     let cfg = d.path().join("live.toml");
-    std::fs::write(&cfg, "[can]\ninterface = \"vcan0\"\n[estimator]\nwarmup_s = 1.0\nlearn_s = 3.0\n[daemon]\nsilent_after_s = 0.5\nerror_frames = true\n").unwrap();
+    std::fs::write(
+        &cfg,
+        "[can]\ninterface = \"vcan0\"\n[estimator]\nwarmup_s = 1.0\nlearn_s = 3.0\n[daemon]\nsilent_after_s = 0.5\nerror_frames = true\n",
+    )
+    .unwrap();
     // part 1: a clean moving log; part 2: faults; part 3: after the link bounce
     let clean = d.path().join("clean.log");
     std::fs::write(&clean, common::gentle_log(204 * 6, [0.3, -0.2, 0.25], 1_700_000_000_000_000)).unwrap();
@@ -202,8 +218,20 @@ cat daemon.err
     let err = d.path().join("daemon.err");
     let (ok, console) = vm(
         &script,
-        &[(&cfg, "/work/live.toml"), (&clean, "/work/clean.log"), (&faults, "/work/faults.log"), (&after, "/work/after.log"), (&recreated, "/work/recreated.log")],
-        &[("/work/live4.log", &l4), ("/work/live1.log", &l1), ("/work/live2.log", &l2), ("/work/live3.log", &l3), ("/work/daemon.err", &err)],
+        &[
+            (&cfg, "/work/live.toml"),
+            (&clean, "/work/clean.log"),
+            (&faults, "/work/faults.log"),
+            (&after, "/work/after.log"),
+            (&recreated, "/work/recreated.log"),
+        ],
+        &[
+            ("/work/live4.log", &l4),
+            ("/work/live1.log", &l1),
+            ("/work/live2.log", &l2),
+            ("/work/live3.log", &l3),
+            ("/work/daemon.err", &err),
+        ],
         600,
     );
     assert!(ok, "VM run failed:\n{console}");

@@ -154,7 +154,13 @@ fn set_rcvbuf(s: &CanSocket, bytes: libc::c_int) {
     let set = |opt| {
         // SAFETY: setsockopt on our own socket with a c_int option value.
         unsafe {
-            libc::setsockopt(fd, libc::SOL_SOCKET, opt, &bytes as *const libc::c_int as *const libc::c_void, std::mem::size_of::<libc::c_int>() as libc::socklen_t)
+            libc::setsockopt(
+                fd,
+                libc::SOL_SOCKET,
+                opt,
+                &bytes as *const libc::c_int as *const libc::c_void,
+                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+            )
         }
     };
     if set(libc::SO_RCVBUFFORCE) != 0 && set(libc::SO_RCVBUF) != 0 {

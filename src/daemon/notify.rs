@@ -16,11 +16,8 @@ impl Notifier {
     pub fn from_env() -> Notifier {
         let enabled = std::env::var_os("NOTIFY_SOCKET").is_some();
         let mut usec = 0u64;
-        let watchdog_every = if enabled && sd_notify::watchdog_enabled(false, &mut usec) && usec > 0 {
-            Some(Duration::from_micros(usec / 2))
-        } else {
-            None
-        };
+        let watchdog_every =
+            if enabled && sd_notify::watchdog_enabled(false, &mut usec) && usec > 0 { Some(Duration::from_micros(usec / 2)) } else { None };
         if let Some(w) = watchdog_every {
             tracing::info!(every_ms = w.as_millis() as u64, "systemd watchdog on");
         }

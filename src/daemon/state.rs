@@ -58,11 +58,7 @@ impl State {
     pub fn prior(&self, now_unix: f64, walk: f64, floor: f64) -> Learned {
         let age = (now_unix - self.saved_unix).max(0.0);
         let grow = walk * walk * age;
-        Learned {
-            bias: self.bias,
-            bias_sigma: self.bias_sigma.map(|s| (s * s + grow).sqrt().max(floor)),
-            temp: self.temp,
-        }
+        Learned { bias: self.bias, bias_sigma: self.bias_sigma.map(|s| (s * s + grow).sqrt().max(floor)), temp: self.temp }
     }
 
     fn valid(&self) -> Result<(), String> {

@@ -24,8 +24,8 @@ pub mod scenario;
 use crate::adis::{builtin_profile, InputIds, Profile, RawSample};
 use crate::candump::LogWriter;
 use model::{
-    Effect, GSensitivity, GyroInput, GyroModel, Misalignment, ScaleFactor, SensorModel, ThermalLinear, ThermalQuadratic,
-    ThermalRate, TimeDelay, TurnOnBias, VibrationModel, WarmupTransient,
+    Effect, GSensitivity, GyroInput, GyroModel, Misalignment, ScaleFactor, SensorModel, ThermalLinear, ThermalQuadratic, ThermalRate,
+    TimeDelay, TurnOnBias, VibrationModel, WarmupTransient,
 };
 use motion::{c_nb, to_body, MotionSpec, Truth, TruthGen};
 use rand::{Rng, SeedableRng};

@@ -528,7 +528,14 @@ mod tests {
     fn each_effect_has_its_documented_shape() {
         let m = full();
         m.validate().unwrap();
-        let x = GyroInput { rate: [10.0, 20.0, 0.0], rate_dot: [100.0, 0.0, 0.0], f: [0.0, 0.0, -1.0], temp: 35.0, temp_rate: 0.01, t_on: 10.0 };
+        let x = GyroInput {
+            rate: [10.0, 20.0, 0.0],
+            rate_dot: [100.0, 0.0, 0.0],
+            f: [0.0, 0.0, -1.0],
+            temp: 35.0,
+            temp_rate: 0.01,
+            t_on: 10.0,
+        };
         let y = m.measure(&x);
         // x: delay -> 10 - 0.01*100 = 9; bias 0.1 + 0.002*10 + 1e-4*100 + 0.5*0.01 + 0.05/e + 0.01*(-1)
         let bx = 0.1 + 0.02 + 0.01 + 0.005 + 0.05 * (-1.0f64).exp() - 0.01;

@@ -225,16 +225,19 @@ impl Plan {
 
 fn sines(rng: &mut ChaCha8Rng, amps: [f64; 2], periods: [f64; 2], n: usize) -> Vec<Sine> {
     (0..n)
-        .map(|_| Sine {
-            amp: uni(rng, amps),
-            freq: 1.0 / uni(rng, periods),
-            phase: rng.gen_range(0.0..2.0 * std::f64::consts::PI),
-        })
+        .map(|_| Sine { amp: uni(rng, amps), freq: 1.0 / uni(rng, periods), phase: rng.gen_range(0.0..2.0 * std::f64::consts::PI) })
         .collect()
 }
 
 fn thermal(rng: &mut ChaCha8Rng, r: &Ranges) -> Thermal {
-    Thermal { ambient: uni(rng, r.ambient), rise: uni(rng, r.self_heating), tau: uni(rng, r.heating_tau_s), drift: 0.0, cycle_amp: 0.0, cycle_period: 1.0 }
+    Thermal {
+        ambient: uni(rng, r.ambient),
+        rise: uni(rng, r.self_heating),
+        tau: uni(rng, r.heating_tau_s),
+        drift: 0.0,
+        cycle_amp: 0.0,
+        cycle_period: 1.0,
+    }
 }
 
 fn at_rest(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64) -> MotionSpec {
