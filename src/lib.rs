@@ -14,6 +14,7 @@ pub mod ekf;
 pub mod estimator;
 pub mod evaluate;
 pub mod gap;
+pub mod outfile;
 pub mod output;
 pub mod pipeline;
 pub mod replay;

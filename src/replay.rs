@@ -10,11 +10,12 @@ use crate::adis::{Drop, InputCounters, RawFrame};
 use crate::candump::{parse_line, LineError, LineReader, LogWriter};
 use crate::config::Config;
 use crate::estimator::Estimate;
+use crate::outfile::OutFile;
 use crate::output::OutFrame;
 use crate::pipeline::{Pipeline, Sink};
 use serde::Serialize;
 use std::fs::File;
-use std::io::{self, BufWriter, Read, Write};
+use std::io::{self, Read, Write};
 use std::path::Path;
 
 /// How many bad lines are reported one by one before only counting.
@@ -343,6 +344,8 @@ pub enum ReplayError {
     Output { path: String, source: io::Error },
     #[error("reading {path}: {source}")]
     Read { path: String, source: io::Error },
+    #[error("{0}")]
+    Refused(String),
 }
 
 /// Files for `replay_files`.
@@ -353,14 +356,18 @@ pub struct ReplayFiles<'a> {
 }
 
 /// Replay a log file to an output log and/or CSV. `keep` collects estimates.
+/// Outputs are written under temporary names and renamed only when the run
+/// succeeds (`crate::outfile`); an output that is the input is refused.
 pub fn replay_files(cfg: &Config, files: &ReplayFiles<'_>, keep: Option<&mut Vec<Estimate>>) -> Result<Summary, ReplayError> {
     let ip = files.input.display().to_string();
+    let outs: Vec<&Path> = files.output.iter().chain(files.csv.iter()).copied().collect();
+    crate::outfile::refuse_inputs_as_outputs(&[files.input], &outs).map_err(ReplayError::Refused)?;
     let input = File::open(files.input).map_err(|source| ReplayError::Input { path: ip.clone(), source })?;
-    let create = |p: &Path| {
-        File::create(p)
-            .map(|f| BufWriter::with_capacity(1 << 20, f))
-            .map_err(|source| ReplayError::Output { path: p.display().to_string(), source })
+    let out_err = |p: &Path| {
+        let path = p.display().to_string();
+        move |source| ReplayError::Output { path, source }
     };
+    let create = |p: &Path| OutFile::create(p).map_err(out_err(p));
     let mut log = match files.output {
         Some(p) => Some(LogWriter::new(create(p)?, &cfg.can.interface)),
         None => None,
@@ -368,7 +375,7 @@ pub fn replay_files(cfg: &Config, files: &ReplayFiles<'_>, keep: Option<&mut Vec
     let mut csv = match files.csv {
         Some(p) => {
             let mut w = create(p)?;
-            w.write_all(CSV_HEADER.as_bytes()).map_err(|source| ReplayError::Output { path: p.display().to_string(), source })?;
+            w.write_all(CSV_HEADER.as_bytes()).map_err(out_err(p))?;
             Some(w)
         }
         None => None,
@@ -379,11 +386,15 @@ pub fn replay_files(cfg: &Config, files: &ReplayFiles<'_>, keep: Option<&mut Vec
     if let Some(e) = sink.err.take() {
         return Err(ReplayError::Output { path: out_name(files), source: e });
     }
-    if let Some(l) = log {
-        l.finish().map_err(|source| ReplayError::Output { path: out_name(files), source })?;
+    if sum.input.samples == 0 {
+        // Nothing to write: leave no output that looks like a result.
+        return Ok(sum);
     }
-    if let (Some(mut c), Some(p)) = (csv, files.csv) {
-        c.flush().map_err(|source| ReplayError::Output { path: p.display().to_string(), source })?;
+    if let (Some(l), Some(p)) = (log, files.output) {
+        l.finish().and_then(OutFile::commit).map_err(out_err(p))?;
+    }
+    if let (Some(c), Some(p)) = (csv, files.csv) {
+        c.commit().map_err(out_err(p))?;
     }
     Ok(sum)
 }

@@ -111,6 +111,34 @@ fn empty_missing_and_garbage_inputs_are_clear_errors() {
 }
 
 #[test]
+fn replay_never_destroys_its_input_or_leaves_a_half_written_output() {
+    let d = tempfile::tempdir().unwrap();
+    let input = d.path().join("in.log");
+    let log = gentle_log(300, [0.0; 3], 1_000_000);
+    std::fs::write(&input, &log).unwrap();
+    // --output is the input, directly and through a symbolic link
+    let link = d.path().join("link.log");
+    std::os::unix::fs::symlink(&input, &link).unwrap();
+    for out in [&input, &link] {
+        let o = Command::new(bin()).arg("replay").arg("--input").arg(&input).arg("--output").arg(out).output().unwrap();
+        assert!(!o.status.success());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("refusing to overwrite an input"), "{err}");
+        assert_eq!(std::fs::read(&input).unwrap(), log, "input changed");
+    }
+    // a run that fails (no sample in the input) leaves an existing output as it was
+    let out = d.path().join("out.log");
+    std::fs::write(&out, b"earlier result\n").unwrap();
+    let empty = d.path().join("empty.log");
+    std::fs::write(&empty, b"").unwrap();
+    let o = Command::new(bin()).arg("replay").arg("--input").arg(&empty).arg("--output").arg(&out).output().unwrap();
+    assert!(!o.status.success());
+    assert_eq!(std::fs::read(&out).unwrap(), b"earlier result\n");
+    let names: Vec<_> = std::fs::read_dir(d.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(names.len(), 4, "a temporary file was left: {names:?}");
+}
+
+#[test]
 fn counter_jump_of_1000_is_a_counted_gap() {
     let d = tempfile::tempdir().unwrap();
     let text = String::from_utf8(gentle_log(400, [0.0; 3], 1_000_000)).unwrap();
