@@ -31,6 +31,8 @@ pub struct Config {
     pub robust: RobustConfig,
     pub output: OutputConfig,
     pub daemon: DaemonConfig,
+    pub mounting: MountingConfig,
+    pub speed: SpeedConfig,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -351,6 +353,57 @@ impl Default for DaemonConfig {
     }
 }
 
+/// `[mounting]`: where the sensor sits in the vehicle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MountingConfig {
+    /// The sensor frame in the vehicle frame as Z-Y-X Euler angles
+    /// `[roll, pitch, yaw]`, deg. Every sample is rotated into the vehicle
+    /// frame (FRD) before the estimator; outputs are in the vehicle frame.
+    /// Default `[0, 0, 0]` (sensor axes = vehicle axes).
+    pub rotation: [f64; 3],
+    /// Position of the sensor from the centre of the rear axle, vehicle
+    /// axes (x forward, y right, z down), m. Default `[0, 0, 0]`.
+    pub lever_arm: [f64; 3],
+}
+
+impl Default for MountingConfig {
+    fn default() -> Self {
+        MountingConfig { rotation: [0.0; 3], lever_arm: [0.0; 3] }
+    }
+}
+
+/// `[speed]`: the vehicle's own speed from its CAN bus, described by its DBC.
+/// Off unless `dbc` is set.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SpeedConfig {
+    /// The car's DBC file. Empty (default): no speed input.
+    pub dbc: String,
+    /// Message name in the DBC that carries the speed signals.
+    pub message: String,
+    /// Signal names in that message; their values are averaged. The unit is
+    /// the DBC's (km/h, m/s or mph).
+    pub signals: Vec<String>,
+    /// Factor applied to the decoded speed (e.g. a tyre correction). Default 1.
+    pub scale: f64,
+    /// A speed older than this is not used (and flagged), s. Default 0.5.
+    pub timeout_s: f64,
+}
+
+impl Default for SpeedConfig {
+    fn default() -> Self {
+        SpeedConfig { dbc: String::new(), message: String::new(), signals: Vec::new(), scale: 1.0, timeout_s: 0.5 }
+    }
+}
+
+impl SpeedConfig {
+    /// True when a speed source is configured.
+    pub fn enabled(&self) -> bool {
+        !self.dbc.is_empty()
+    }
+}
+
 impl Config {
     /// Read, parse and validate a config file.
     pub fn load(path: &Path) -> Result<Config, ConfigError> {
@@ -549,6 +602,31 @@ impl Config {
         let d = &self.daemon;
         positive("daemon.save_every_s", d.save_every_s)?;
         positive("daemon.silent_after_s", d.silent_after_s)?;
+        let m = &self.mounting;
+        for a in 0..3 {
+            finite(&format!("mounting.rotation[{a}]"), m.rotation[a])?;
+            if m.rotation[a].abs() > 180.0 {
+                return err(&format!("mounting.rotation[{a}]"), format!("must be within -180..180 deg, got {}", m.rotation[a]));
+            }
+            finite(&format!("mounting.lever_arm[{a}]"), m.lever_arm[a])?;
+            if m.lever_arm[a].abs() > 20.0 {
+                return err(&format!("mounting.lever_arm[{a}]"), format!("must be within -20..20 m, got {}", m.lever_arm[a]));
+            }
+        }
+        if m.rotation[1].abs() > 90.0 {
+            return err("mounting.rotation[1]", format!("pitch must be within -90..90 deg (Z-Y-X), got {}", m.rotation[1]));
+        }
+        let v = &self.speed;
+        if v.enabled() {
+            if v.message.is_empty() {
+                return err("speed.message", "must name the DBC message carrying the speed when speed.dbc is set");
+            }
+            if v.signals.is_empty() {
+                return err("speed.signals", "must name at least one signal when speed.dbc is set");
+            }
+        }
+        positive("speed.scale", v.scale)?;
+        positive("speed.timeout_s", v.timeout_s)?;
         Ok(())
     }
 }
