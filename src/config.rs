@@ -28,7 +28,8 @@ pub struct Config {
     pub ekf: EkfConfig,
     pub switching: SwitchingConfig,
     pub thermal: ThermalConfig,
-    pub robust: RobustConfig,
+    pub mekf: MekfConfig,
+    pub rest: RestConfig,
     pub output: OutputConfig,
     pub daemon: DaemonConfig,
     pub mounting: MountingConfig,
@@ -90,12 +91,12 @@ pub enum Mode {
     StartupThermal,
     /// Paper case 3: EKF + thermal curve anchored at the last EKF bias + switching, as published.
     Paper,
-    /// The paper's structure (EKF bias learning when quasi-static, thermal
-    /// curve anchored at the last EKF bias, bands from `[switching]`) with
-    /// the guards of `[robust]`: decisions on a gyro-compensated low-passed
-    /// specific force, a dwell time, a turn-rate gate, innovation gating with
-    /// a bounded lock-out, tilt fused at intervals, yaw in its own filter.
-    Robust,
+    /// The default: a quaternion error-state Kalman filter (attitude, gyro
+    /// bias, velocity) with standstill updates, the ground-vehicle
+    /// constraint and the paper's policy on top (`src/estimator/mekf.rs`).
+    /// `"robust"`, the previous default's name, selects it too.
+    #[serde(alias = "robust")]
+    Mekf,
 }
 
 impl Mode {
@@ -104,8 +105,47 @@ impl Mode {
             Mode::StartupAverage => "startup_average",
             Mode::StartupThermal => "startup_thermal",
             Mode::Paper => "paper",
-            Mode::Robust => "robust",
+            Mode::Mekf => "mekf",
         }
+    }
+}
+
+/// A setting that is `"auto"`, `true` or `false`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AutoBool {
+    /// Off when the field is zero, absent or implausible for Earth's.
+    Auto,
+    Bool(bool),
+}
+
+impl Serialize for AutoBool {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            AutoBool::Auto => s.serialize_str("auto"),
+            AutoBool::Bool(b) => s.serialize_bool(*b),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for AutoBool {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl serde::de::Visitor<'_> for V {
+            type Value = AutoBool;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("\"auto\", true or false")
+            }
+            fn visit_bool<E: serde::de::Error>(self, v: bool) -> Result<AutoBool, E> {
+                Ok(AutoBool::Bool(v))
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<AutoBool, E> {
+                match v {
+                    "auto" => Ok(AutoBool::Auto),
+                    _ => Err(E::invalid_value(serde::de::Unexpected::Str(v), &self)),
+                }
+            }
+        }
+        d.deserialize_any(V)
     }
 }
 
@@ -122,8 +162,10 @@ pub struct EstimatorConfig {
     pub learn_s: f64,
     /// Magnetic declination, deg (east positive), added to the magnetometer heading.
     pub declination_deg: f64,
-    /// Use the magnetometer for yaw (ignored for parts without one).
-    pub use_magnetometer: bool,
+    /// Use the magnetometer for yaw: "auto" (default: off when the field is
+    /// zero, absent or implausible for Earth's), true or false. Ignored for
+    /// parts without one.
+    pub use_magnetometer: AutoBool,
     /// A counter gap longer than this is a resync (no integration over it), seconds.
     pub max_gap_s: f64,
 }
@@ -131,12 +173,12 @@ pub struct EstimatorConfig {
 impl Default for EstimatorConfig {
     fn default() -> Self {
         EstimatorConfig {
-            mode: Mode::Robust,
+            mode: Mode::Mekf,
             g0_window_s: 1.0,
             warmup_s: 10.0,
             learn_s: 60.0,
             declination_deg: 0.0,
-            use_magnetometer: true,
+            use_magnetometer: AutoBool::Auto,
             max_gap_s: 0.1,
         }
     }
@@ -153,8 +195,10 @@ pub struct EkfConfig {
     pub tilt_sigma_deg: f64,
     /// 1-sigma of the magnetometer heading, deg.
     pub yaw_sigma_deg: f64,
-    /// Initial 1-sigma of the bias, deg/s.
-    pub init_bias_sigma: f64,
+    /// Initial 1-sigma of the bias, deg/s. Default: the part profile's
+    /// turn-on bias sigma (adis16448 and adis16405 3 deg/s, adis16465-1 1 deg/s).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub init_bias_sigma: Option<f64>,
     /// Initial 1-sigma of the angles, deg.
     pub init_angle_sigma_deg: f64,
 }
@@ -166,7 +210,7 @@ impl Default for EkfConfig {
             bias_walk: 0.0005,
             tilt_sigma_deg: 1.0,
             yaw_sigma_deg: 3.0,
-            init_bias_sigma: 0.5,
+            init_bias_sigma: None,
             init_angle_sigma_deg: 5.0,
         }
     }
@@ -203,6 +247,9 @@ impl Default for SwitchingConfig {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ThermalConfig {
+    /// false for parts without a temperature channel: the curve and its
+    /// learning are not used (the temperature is still reported). Default true.
+    pub enabled: bool,
     /// Reference temperature of the curve, deg C. Default 25.
     pub t0: f64,
     /// Slope per axis, deg/s per deg C. Default 0.
@@ -236,6 +283,7 @@ pub struct ThermalConfig {
 impl Default for ThermalConfig {
     fn default() -> Self {
         ThermalConfig {
+            enabled: true,
             t0: 25.0,
             p1: [0.0; 3],
             p2: [0.0; 3],
@@ -252,68 +300,119 @@ impl Default for ThermalConfig {
     }
 }
 
-/// `[robust]`: the guards of `mode = "robust"` (ignored by the other modes).
+/// `[mekf]`: the default filter's settings (ignored by the paper's modes).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct RobustConfig {
-    /// Time constant of the low-pass on the specific force, s. The filter
-    /// runs in the body frame rotated by the (bias-corrected) gyro, so
-    /// gravity passes without lag while vibration and short accelerations
-    /// are averaged out; band decisions and tilt measurements use its output.
+pub struct MekfConfig {
+    /// Rate of the covariance propagation and the measurement updates, Hz
+    /// (the state is propagated at every sample). Default 25.
+    pub update_hz: f64,
+    /// Relative gyro scale-factor and misalignment uncertainty: the
+    /// attitude's variance grows by (this x angle turned)^2. Default 0.01.
+    pub gyro_scale_error: f64,
+    /// Floor of the 1-sigma of the tilt measured at rest (accelerometer
+    /// bias, a surface that is not quite still), deg. Default 0.05.
+    pub rest_tilt_sigma_deg: f64,
+    /// Accelerometer and vehicle-model noise driving the velocity,
+    /// m/s^2/sqrt(Hz). Default 0.1.
+    pub accel_noise: f64,
+    /// The unit is in a ground vehicle: no lateral and no vertical velocity
+    /// at the rear axle (`[mounting] lever_arm`). false: a unit that goes
+    /// nowhere on average (hand-held, on a bench): a bounded velocity on
+    /// every axis and the low-passed specific force as gravity. "auto"
+    /// (default): a vehicle until the body's roll/pitch rates (low-passed
+    /// RMS over 1 s) exceed `handheld_rate_dps`, which no car body does.
+    pub vehicle: AutoBool,
+    /// See `vehicle = "auto"`, deg/s. Default 25.
+    pub handheld_rate_dps: f64,
+    /// 1-sigma of the vehicle constraint (sideslip, suspension), m/s. Default 0.3.
+    pub nhc_sigma: f64,
+    /// 1-sigma of the velocity of a unit that is not a vehicle, m/s. Default 1.0.
+    pub free_velocity_sigma: f64,
+    /// Not a vehicle: time constant of the navigation-frame low-pass of the
+    /// specific force whose direction is fused as gravity, s. Default 3.
     pub accel_tau_s: f64,
-    /// The low-passed |a| must stay in the inner band (with the jerk and
-    /// turn-rate criteria quiet) this long before the accelerometer is fused, s.
-    pub dwell_s: f64,
-    /// Largest |bias-corrected angular rate| still counted as quasi-static,
-    /// deg/s (a turn means centripetal acceleration the |a| test cannot see).
-    pub turn_rate_dps: f64,
-    /// Innovation gate: a tilt (or yaw) measurement whose normalised
-    /// innovation squared exceeds gate_sigma^2 is refused.
-    pub gate_sigma: f64,
-    /// Seconds of refused measurements in quasi-static conditions after
-    /// which the angle covariance is widened to the size of the innovation,
-    /// so the gate cannot lock the accelerometer out forever.
-    pub lockout_s: f64,
-    /// 1-sigma of roll/pitch from the low-passed accelerometer, deg.
+    /// Not a vehicle: 1-sigma of that tilt measurement, deg. Default 1.5.
     pub tilt_sigma_deg: f64,
-    /// Interval between tilt updates, s (the low-passed tilt is correlated
-    /// over `accel_tau_s`; fusing it every sample would count its noise many
-    /// times over). 0 = every sample.
-    pub fuse_every_s: f64,
-    /// Fuse the tilt in the blend band (angles only, noise growing as the
-    /// blend weight falls, gated).
-    pub blend: bool,
-    /// Ground-vehicle motion model (`src/vehicle.rs`): the filter holds the
-    /// forward speed, `f_x` drives it, and the lateral specific force is
-    /// fused on straights and in turns with the centripetal `v r` predicted.
-    /// Off: roll and pitch are fused from the low-passed accelerometer only
-    /// when quasi-static, as tilt.
-    pub vehicle_model: bool,
-    /// 1-sigma of the low-passed lateral specific force against the model
-    /// (bumps, sideslip, lean), g.
-    pub lateral_sigma_g: f64,
-    /// Speed random walk (accelerometer error, model error), m/s/sqrt(s).
-    pub speed_noise: f64,
-    /// 1-sigma of the speed at power-on (the filter starts at 0), m/s.
+    /// 1-sigma of the zero-velocity update at rest, m/s. Default 0.02.
+    pub zupt_sigma: f64,
+    /// Floor of the zero-rate update's 1-sigma at rest, deg/s (the measured
+    /// gyro noise over the rest is used when larger). Default 0.005.
+    pub zru_sigma_dps: f64,
+    /// 1-sigma of the vehicle speed measurement, m/s. Default 0.1.
+    pub speed_sigma: f64,
+    /// Random walk of the speed scale (tyre radius), 1/sqrt(s). Default 1e-4.
+    pub scale_walk: f64,
+    /// Innovation gate: a measurement with NIS > gate_sigma^2 is refused. Default 4.
+    pub gate_sigma: f64,
+    /// Seconds of refused standstill evidence after which the filter
+    /// re-levels on it (flagged). Default 1.5.
+    pub relevel_s: f64,
+    /// 1-sigma of the velocity at power-on, m/s (the car may be moving). Default 15.
     pub init_speed_sigma: f64,
+    /// Relative change of the field's norm that counts as a magnetic disturbance. Default 0.1.
+    pub mag_norm_tol: f64,
+    /// Change of the field's dip angle that counts as a magnetic disturbance, deg. Default 6.
+    pub mag_dip_tol_deg: f64,
+    /// The paper's quasi-static conditions (inner band, acceleration-change
+    /// criterion quiet, turn rate low) must hold this long before the bias
+    /// is learned outside a standstill, s. Default 2.
+    pub dwell_s: f64,
+    /// Largest bias-corrected rate still counted as quasi-static, deg/s. Default 3.
+    pub turn_rate_dps: f64,
 }
 
-impl Default for RobustConfig {
+impl Default for MekfConfig {
     fn default() -> Self {
-        RobustConfig {
-            accel_tau_s: 1.0,
+        MekfConfig {
+            update_hz: 25.0,
+            gyro_scale_error: 0.01,
+            rest_tilt_sigma_deg: 0.05,
+            accel_noise: 0.1,
+            vehicle: AutoBool::Auto,
+            handheld_rate_dps: 25.0,
+            nhc_sigma: 0.3,
+            free_velocity_sigma: 1.0,
+            accel_tau_s: 3.0,
+            tilt_sigma_deg: 1.5,
+            zupt_sigma: 0.02,
+            zru_sigma_dps: 0.005,
+            speed_sigma: 0.1,
+            scale_walk: 1e-4,
+            gate_sigma: 4.0,
+            relevel_s: 1.5,
+            init_speed_sigma: 15.0,
+            mag_norm_tol: 0.1,
+            mag_dip_tol_deg: 6.0,
             dwell_s: 2.0,
             turn_rate_dps: 3.0,
-            gate_sigma: 3.0,
-            lockout_s: 30.0,
-            tilt_sigma_deg: 2.0,
-            fuse_every_s: 0.5,
-            blend: true,
-            vehicle_model: true,
-            lateral_sigma_g: 0.01,
-            speed_noise: 0.3,
-            init_speed_sigma: 10.0,
         }
+    }
+}
+
+/// `[rest]`: the standstill detector (`src/estimator/rest.rs`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RestConfig {
+    /// Time constant of the low-passes (signals and their deviations), s. Default 0.5.
+    pub tau_s: f64,
+    /// The conditions must hold this long, s. Default 1.0.
+    pub min_s: f64,
+    /// Largest RMS deviation of the gyro from its low-pass, deg/s (engine
+    /// idle vibration passes, driving does not). Default 0.6.
+    pub gyro_dev_dps: f64,
+    /// Largest RMS deviation of the specific force from its low-pass, g. Default 0.04.
+    pub accel_dev_g: f64,
+    /// Largest | |f|/g0 - 1 | of the low-passed specific force (a steady
+    /// 0.1 g acceleration is 0.5 %). Default 0.005.
+    pub band: f64,
+    /// Largest low-passed bias-corrected rate, deg/s (plus three bias sigmas). Default 0.5.
+    pub rate_dps: f64,
+}
+
+impl Default for RestConfig {
+    fn default() -> Self {
+        RestConfig { tau_s: 0.5, min_s: 1.0, gyro_dev_dps: 0.6, accel_dev_g: 0.04, band: 0.005, rate_dps: 0.5 }
     }
 }
 
@@ -397,6 +496,17 @@ impl Default for SpeedConfig {
     }
 }
 
+impl MountingConfig {
+    /// Sensor-to-vehicle rotation matrix (None when the rotation is zero).
+    pub fn matrix(&self) -> Option<[[f64; 3]; 3]> {
+        if self.rotation == [0.0; 3] {
+            return None;
+        }
+        let d = std::f64::consts::PI / 180.0;
+        Some(crate::estimator::quat::matrix_from_euler(self.rotation[0] * d, self.rotation[1] * d, self.rotation[2] * d))
+    }
+}
+
 impl SpeedConfig {
     /// True when a speed source is configured.
     pub fn enabled(&self) -> bool {
@@ -432,6 +542,12 @@ impl Config {
         p.temp_lsb = i.temp_lsb.unwrap_or(p.temp_lsb);
         p.temp_offset = i.temp_offset.unwrap_or(p.temp_offset);
         p
+    }
+
+    /// The initial 1-sigma of the gyro bias, deg/s: `[ekf] init_bias_sigma`
+    /// or the part profile's turn-on bias sigma.
+    pub fn init_bias_sigma(&self) -> f64 {
+        self.ekf.init_bias_sigma.unwrap_or_else(|| self.profile().gyro_bias_sigma)
     }
 
     /// The effective config as TOML text.
@@ -529,7 +645,9 @@ impl Config {
         non_negative("ekf.bias_walk", k.bias_walk)?;
         positive("ekf.tilt_sigma_deg", k.tilt_sigma_deg)?;
         positive("ekf.yaw_sigma_deg", k.yaw_sigma_deg)?;
-        positive("ekf.init_bias_sigma", k.init_bias_sigma)?;
+        if let Some(v) = k.init_bias_sigma {
+            positive("ekf.init_bias_sigma", v)?;
+        }
         positive("ekf.init_angle_sigma_deg", k.init_angle_sigma_deg)?;
         let s = &self.switching;
         band("switching.inner", s.inner)?;
@@ -573,17 +691,34 @@ impl Config {
         }
         non_negative("thermal.learn_after_s", t.learn_after_s)?;
         positive("thermal.learn_min_spread", t.learn_min_spread)?;
-        let r = &self.robust;
-        positive("robust.accel_tau_s", r.accel_tau_s)?;
-        non_negative("robust.dwell_s", r.dwell_s)?;
-        positive("robust.turn_rate_dps", r.turn_rate_dps)?;
-        positive("robust.gate_sigma", r.gate_sigma)?;
-        positive("robust.lockout_s", r.lockout_s)?;
-        positive("robust.tilt_sigma_deg", r.tilt_sigma_deg)?;
-        non_negative("robust.fuse_every_s", r.fuse_every_s)?;
-        positive("robust.lateral_sigma_g", r.lateral_sigma_g)?;
-        positive("robust.speed_noise", r.speed_noise)?;
-        positive("robust.init_speed_sigma", r.init_speed_sigma)?;
+        let m = &self.mekf;
+        positive("mekf.update_hz", m.update_hz)?;
+        positive("mekf.accel_noise", m.accel_noise)?;
+        non_negative("mekf.gyro_scale_error", m.gyro_scale_error)?;
+        positive("mekf.rest_tilt_sigma_deg", m.rest_tilt_sigma_deg)?;
+        positive("mekf.nhc_sigma", m.nhc_sigma)?;
+        positive("mekf.handheld_rate_dps", m.handheld_rate_dps)?;
+        positive("mekf.free_velocity_sigma", m.free_velocity_sigma)?;
+        positive("mekf.accel_tau_s", m.accel_tau_s)?;
+        positive("mekf.tilt_sigma_deg", m.tilt_sigma_deg)?;
+        positive("mekf.zupt_sigma", m.zupt_sigma)?;
+        positive("mekf.zru_sigma_dps", m.zru_sigma_dps)?;
+        positive("mekf.speed_sigma", m.speed_sigma)?;
+        non_negative("mekf.scale_walk", m.scale_walk)?;
+        positive("mekf.gate_sigma", m.gate_sigma)?;
+        positive("mekf.relevel_s", m.relevel_s)?;
+        positive("mekf.init_speed_sigma", m.init_speed_sigma)?;
+        positive("mekf.mag_norm_tol", m.mag_norm_tol)?;
+        positive("mekf.mag_dip_tol_deg", m.mag_dip_tol_deg)?;
+        non_negative("mekf.dwell_s", m.dwell_s)?;
+        positive("mekf.turn_rate_dps", m.turn_rate_dps)?;
+        let r = &self.rest;
+        positive("rest.tau_s", r.tau_s)?;
+        non_negative("rest.min_s", r.min_s)?;
+        positive("rest.gyro_dev_dps", r.gyro_dev_dps)?;
+        positive("rest.accel_dev_g", r.accel_dev_g)?;
+        positive("rest.band", r.band)?;
+        positive("rest.rate_dps", r.rate_dps)?;
         let o = &self.output;
         let oids = [o.rate_id, o.attitude_id, o.bias_id, o.status_id];
         for (k, v) in ["output.rate_id", "output.attitude_id", "output.bias_id", "output.status_id"].iter().zip(oids) {
@@ -666,13 +801,20 @@ mod tests {
         assert!(bad("[thermal]\nlearn_min_spread = 0.0").contains("thermal.learn_min_spread"));
         assert!(bad("[thermal]\nlearn_max_dev = [0.01, -0.01, 0.01]").contains("thermal.learn_max_dev[1]"));
         assert!(bad("[estimator]\nmode = \"magic\"").contains("mode"));
-        assert!(bad("[robust]\ngate_sigma = 0.0").contains("robust.gate_sigma"));
-        assert!(bad("[robust]\naccel_tau_s = -1.0").contains("robust.accel_tau_s"));
-        assert!(bad("[robust]\ndwell_s = nan").contains("robust.dwell_s"));
-        assert!(bad("[robust]\nlateral_sigma_g = inf").contains("robust.lateral_sigma_g"));
-        assert!(bad("[robust]\nspeed_noise = -1.0").contains("robust.speed_noise"));
-        assert!(bad("[robust]\ninit_speed_sigma = 0.0").contains("robust.init_speed_sigma"));
-        assert!(bad("[robust]\nvehicle_model = 1").contains("vehicle_model"));
+        assert!(bad("[mekf]\ngate_sigma = 0.0").contains("mekf.gate_sigma"));
+        assert!(bad("[mekf]\nupdate_hz = -1.0").contains("mekf.update_hz"));
+        assert!(bad("[mekf]\ndwell_s = nan").contains("mekf.dwell_s"));
+        assert!(bad("[mekf]\nnhc_sigma = inf").contains("mekf.nhc_sigma"));
+        assert!(bad("[mekf]\nvehicle = 1").contains("vehicle"));
+        assert!(bad("[mekf]\nvehicle = \"sometimes\"").contains("vehicle"));
+        assert!(bad("[rest]\nmin_s = -1.0").contains("rest.min_s"));
+        assert!(bad("[rest]\ngyro_dev_dps = 0.0").contains("rest.gyro_dev_dps"));
+        assert!(bad("[ekf]\ninit_bias_sigma = 0.0").contains("ekf.init_bias_sigma"));
+        assert!(bad("[estimator]\nuse_magnetometer = \"sometimes\"").contains("use_magnetometer"));
+        assert!(bad("[mounting]\nrotation = [0.0, 95.0, 0.0]").contains("mounting.rotation[1]"));
+        assert!(bad("[mounting]\nlever_arm = [0.0, nan, 0.0]").contains("mounting.lever_arm[1]"));
+        assert!(bad("[speed]\ndbc = \"car.dbc\"").contains("speed.message"));
+        assert!(bad("[speed]\ntimeout_s = 0.0").contains("speed.timeout_s"));
         assert!(bad("[output]\nrate_id = 0x100").contains("output.rate_id"));
     }
 

@@ -21,4 +21,3 @@ pub mod replay;
 pub mod sim;
 pub mod switching;
 pub mod thermal;
-pub mod vehicle;

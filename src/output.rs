@@ -6,7 +6,7 @@
 //! | GYRO_RATE_CORR | RateX i16 0.01 deg/s | RateY | RateZ | DataCnt u16 |
 //! | ATTITUDE | Roll i16 0.01 deg | Pitch | Yaw | DataCnt |
 //! | GYRO_BIAS | BiasX i16 0.0005 deg/s | BiasY | BiasZ | DataCnt |
-//! | EST_STATUS | Mode (4 bits) + flags (12 bits) | TempC i16 0.01 C | DataCnt | ErrCnt u8, LostCnt u8 |
+//! | EST_STATUS | Mode (2 bits) + flags (14 bits) | TempC i16 0.01 C | DataCnt | ErrCnt u8, LostCnt u8 |
 //!
 //! Values outside a signal's range saturate (and set `RATE_SAT` for rates).
 
@@ -78,7 +78,7 @@ pub fn encode(e: &Estimate, c: &StatusCounters, ids: &OutputConfig, extra_flags:
     let ang = [q16(e.roll, ANGLE_SCALE).0, q16(e.pitch, ANGLE_SCALE).0, q16(e.yaw, ANGLE_SCALE).0];
     let bias = [q16(e.bias[0], BIAS_SCALE).0, q16(e.bias[1], BIAS_SCALE).0, q16(e.bias[2], BIAS_SCALE).0];
     let mut st = [0u8; 8];
-    let w0: u16 = (e.mode as u16 & 0xF) | ((fl & 0x0FFF) << 4);
+    let w0: u16 = (e.mode as u16 & 0x3) | ((fl & 0x3FFF) << 2);
     st[0..2].copy_from_slice(&w0.to_le_bytes());
     st[2..4].copy_from_slice(&q16(e.temp, TEMP_SCALE).0.to_le_bytes());
     st[4..6].copy_from_slice(&e.cnt.to_le_bytes());
@@ -114,8 +114,8 @@ pub fn decode(frames: &[OutFrame; 4]) -> Decoded {
         rate: [0, 1, 2].map(|i| g(&frames[0].data, i, RATE_SCALE)),
         att: [0, 1, 2].map(|i| g(&frames[1].data, i, ANGLE_SCALE)),
         bias: [0, 1, 2].map(|i| g(&frames[2].data, i, BIAS_SCALE)),
-        mode: (w0 & 0xF) as u8,
-        flags: w0 >> 4,
+        mode: (w0 & 0x3) as u8,
+        flags: w0 >> 2,
         temp: g(st, 1, TEMP_SCALE),
         cnt: u16::from_le_bytes([st[4], st[5]]),
         errors: st[6],

@@ -1,0 +1,973 @@
+//! The default filter (`mode = "mekf"`): a multiplicative error-state
+//! Kalman filter on a unit quaternion, with the gyro bias and the velocity.
+//!
+//! # State
+//! - attitude `q` (body FRD to navigation NED), its error `dθ` in the
+//!   navigation frame: `C_true = (I + [dθ×]) C_est`;
+//! - gyro bias `b` (body, rad/s);
+//! - velocity `v` of the sensor (NED, m/s);
+//! - the wheel-speed scale error `s` (`v_true = (1 + s) v_wheel`; inactive
+//!   without a speed source).
+//!
+//! The gyro drives the attitude, the accelerometer drives the velocity
+//! (`v' = C f + g`). Gravity is never *assumed* from the accelerometer:
+//! tilt is observed through what the velocity must do, so a sustained
+//! acceleration is integrated into the velocity instead of being read as a
+//! tilt. The velocity is observed by
+//! - standstill: at rest the velocity is zero (ZUPT) and the gyro reads the
+//!   bias on all three axes (zero-rate update) — the strongest bias
+//!   information a vehicle gets, and what re-anchors everything at a stop;
+//! - the ground-vehicle constraint: no lateral and no vertical velocity at
+//!   the rear axle (`[mounting] lever_arm` from there to the sensor);
+//! - the wheel speed, when configured (`[speed]`);
+//! - heading from the magnetometer (only `dθ_z` and the bias are corrected,
+//!   never the tilt; gated by a disturbance test on the field's norm and dip).
+//!
+//! # Costs
+//! The state is propagated every sample (quaternion, velocity); the 10x10
+//! covariance and the measurement updates run at `update_hz` (default
+//! 25 Hz) with the transition accumulated exactly over the samples between
+//! (`Φ_θb = -Σ C dt`, `Φ_vθ = -[Σ C f dt ×]`). No allocation.
+//!
+//! # Policy on top (the paper's structure)
+//! Updates correct the attitude and velocity whenever they pass their
+//! innovation gate; the bias is learned only when the data say quasi-static:
+//! at rest, or with |a|/g0 inside the inner band, the acceleration-change
+//! criterion quiet, the turn rate low, for `dwell_s`. A gate that refuses
+//! at rest for `relevel_s` is a re-levelling (flagged), never a lock-out.
+
+use super::quat::{self, cross, rotate, rotate_t, Mat3, Quat};
+use super::rest::{RestDetector, RestParams, RestState};
+use super::{flags, StepIn};
+use crate::ekf::wrap_pi;
+use crate::switching::{Band, Switching};
+
+pub const N: usize = 10;
+const TH: usize = 0;
+const BI: usize = 3;
+const VE: usize = 6;
+const SC: usize = 9;
+/// Standard gravity, m/s^2 per g.
+pub const G: f64 = 9.80665;
+const D2R: f64 = std::f64::consts::PI / 180.0;
+/// A unit that becomes still at a speed above this (m/s, and above three
+/// sigmas) is cruising smoothly, not standing: no zero-velocity update.
+const CRUISE_SPEED: f64 = 5.0;
+
+/// Whether the magnetometer is used for heading.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MagUse {
+    /// Decided from the field over the first second: off when it is zero,
+    /// absent or implausible for Earth's (|m| outside 0.1..1.0 gauss).
+    Auto,
+    On,
+    Off,
+}
+
+/// Whether the unit is in a ground vehicle (`[mekf] vehicle`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Vehicle {
+    /// A vehicle until the body's roll and pitch rates say otherwise: a car
+    /// body rolls and pitches by a few deg/s, a hand-held unit by tens.
+    Auto,
+    On,
+    Off,
+}
+
+/// Settings of the filter, in its own units (rad, s, m).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MekfParams {
+    /// Seconds between covariance propagations / measurement updates.
+    pub tick_s: f64,
+    /// Gyro white noise, rad^2/s; bias random walk, rad^2/s^3; accelerometer
+    /// (and vehicle-model) noise, (m/s^2)^2/Hz; speed-scale walk, 1/s.
+    pub q_gyro: f64,
+    /// Relative gyro scale / misalignment uncertainty: the attitude's
+    /// variance grows by (this x rotation angle)^2.
+    pub gyro_scale: f64,
+    pub q_bias: f64,
+    pub q_accel: f64,
+    pub q_scale: f64,
+    /// Ground-vehicle constraint variance (m/s)^2.
+    pub nhc_var: f64,
+    /// Whether the unit is in a ground vehicle.
+    pub vehicle: Vehicle,
+    /// `Vehicle::Auto`: the low-passed (1 s) RMS of the body x/y rates above
+    /// which the unit is not in a ground vehicle (rad/s).
+    pub handheld_rate: f64,
+    /// Velocity variance of a bounded-velocity unit (hand-held): applied on
+    /// all axes when not a vehicle.
+    pub free_var: f64,
+    /// Not a vehicle: time constant of the navigation-frame low-pass of the
+    /// specific force (s) and the variance of the tilt it gives (rad^2).
+    pub accel_tau: f64,
+    pub lp_tilt_var: f64,
+    pub zupt_var: f64,
+    /// Floor of the at-rest tilt update's variance (accelerometer bias), rad^2.
+    pub tilt_floor: f64,
+    /// Floor of the zero-rate update's variance, (rad/s)^2.
+    pub zru_floor: f64,
+    pub yaw_var: f64,
+    pub speed_var: f64,
+    /// NIS gate (gate_sigma^2).
+    pub gate: f64,
+    pub relevel_s: f64,
+    pub lever: [f64; 3],
+    pub mag: MagUse,
+    pub declination: f64,
+    pub mag_norm_tol: f64,
+    pub mag_dip_tol: f64,
+    pub init_angle_sigma: f64,
+    pub init_bias_sigma: f64,
+    pub init_speed_sigma: f64,
+    pub init_scale_sigma: f64,
+    pub dwell_s: f64,
+    pub turn_rate: f64,
+    pub rest: RestParams,
+    pub g0_window_s: f64,
+    pub speed_aided: bool,
+}
+
+/// What a scalar update did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Upd {
+    Fused,
+    Gated,
+    Skipped,
+}
+
+/// Which gain rows an update may move.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Gain {
+    /// The tilt (dθ_x, dθ_y).
+    tilt: bool,
+    bias: bool,
+}
+
+/// Per-tick sums.
+#[derive(Clone, Debug, Default)]
+struct Accum {
+    n: u32,
+    t: f64,
+    /// Σ C dt and Σ C f dt (f in m/s^2).
+    s_c: Mat3,
+    dv: [f64; 3],
+    /// Σ raw gyro (rad/s), Σ bias-corrected gyro, Σ magnetometer.
+    gyro: [f64; 3],
+    omega: [f64; 3],
+    magn: [f64; 3],
+    accel: [f64; 3],
+    /// Σ |omega| dt, rad.
+    turned: f64,
+    suspect: bool,
+    /// The policy held for every sample of the tick.
+    quasi: bool,
+    rest: bool,
+}
+
+/// What the updates of one tick did.
+#[derive(Clone, Copy, Debug, Default)]
+struct Outcome {
+    fused: bool,
+    learned: bool,
+    refused: bool,
+}
+
+/// Counters the filter keeps for the summary and the status.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MekfCounters {
+    pub relevels: u64,
+    pub rest_s: f64,
+    pub gated_s: f64,
+    pub mag_disturbed_s: f64,
+    /// Longest continuous time the velocity constraints were refused, s.
+    pub refused_max_s: f64,
+    pub speed_used_s: f64,
+    /// Times the velocity was widened after its constraints were refused for long.
+    pub reacquired: u64,
+}
+
+#[derive(Clone, Debug)]
+pub struct Mekf {
+    p: MekfParams,
+    started: bool,
+    q: Quat,
+    c: Mat3,
+    /// Bias, rad/s.
+    pub bias: [f64; 3],
+    v: [f64; 3],
+    scale: f64,
+    /// Low-passed specific force in the navigation frame, g (None until started).
+    f_lp: Option<[f64; 3]>,
+    cov: [[f64; N]; N],
+    dx: [f64; N],
+    acc: Accum,
+    rest: RestDetector,
+    last_rest: Option<RestState>,
+    switching: Switching,
+    dwell: f64,
+    /// Magnetometer: decided use (None while undecided), field reference
+    /// (norm gauss, dip rad), the auto decision's sums.
+    mag_on: Option<bool>,
+    mag_ref: Option<(f64, f64)>,
+    mag_sum: f64,
+    mag_n: u32,
+    mag_disturbed: bool,
+    mag_dist_s: f64,
+    /// Seconds still with an update refused; seconds in motion with the
+    /// velocity constraints refused.
+    refused_still: f64,
+    nhc_refused: f64,
+    /// Speed and its sigma when the unit became still (m/s).
+    still_speed: Option<(f64, f64)>,
+    /// A bias is known (a rest was seen or a prior given).
+    bias_known: bool,
+    /// The vehicle model is in use; the low-passed squared x/y body rate.
+    vehicle: bool,
+    xy_rate2: f64,
+    /// The last tick's outcome, held until the next tick.
+    mode: u8,
+    tick_flags: u16,
+    /// The speed measurement for the next tick (m/s), if fresh.
+    speed: Option<f64>,
+    /// Bias and temperature of the last tick that learned the bias.
+    pub last_learned: Option<(f64, [f64; 3])>,
+    /// A learning point for the thermal slope: (temp, bias deg/s, weight s).
+    pub rest_point: Option<(f64, [f64; 3], f64)>,
+    pub counters: MekfCounters,
+}
+
+impl Mekf {
+    pub fn new(p: MekfParams, switching: Switching) -> Mekf {
+        let rest = RestDetector::new(p.rest);
+        Mekf {
+            p,
+            started: false,
+            q: [1.0, 0.0, 0.0, 0.0],
+            c: quat::to_matrix(&[1.0, 0.0, 0.0, 0.0]),
+            bias: [0.0; 3],
+            v: [0.0; 3],
+            scale: 0.0,
+            f_lp: None,
+            cov: [[0.0; N]; N],
+            dx: [0.0; N],
+            acc: Accum::default(),
+            rest,
+            last_rest: None,
+            switching,
+            dwell: 0.0,
+            mag_on: None,
+            mag_ref: None,
+            mag_sum: 0.0,
+            mag_n: 0,
+            mag_disturbed: false,
+            mag_dist_s: 0.0,
+            refused_still: 0.0,
+            nhc_refused: 0.0,
+            still_speed: None,
+            bias_known: false,
+            vehicle: true,
+            xy_rate2: 0.0,
+            mode: 2,
+            tick_flags: 0,
+            speed: None,
+            last_learned: None,
+            rest_point: None,
+            counters: MekfCounters::default(),
+        }
+    }
+
+    /// Start on the first sample: tilt from the accelerometer, heading from
+    /// the magnetometer when it is plausible, the bias given (rad/s) with its
+    /// sigma, the velocity zero with `init_speed_sigma`.
+    pub fn start(&mut self, accel: &[f64; 3], magn: &[f64; 3], bias: [f64; 3], bias_sigma: [f64; 3], known: bool) {
+        let (roll, pitch) = crate::ekf::tilt_from_accel(accel);
+        let mut yaw = 0.0;
+        let mn = norm(magn);
+        if self.p.mag != MagUse::Off && mn > 0.1 && mn < 1.0 {
+            yaw = wrap_pi(crate::ekf::heading_from_mag(magn, roll, pitch) + self.p.declination);
+        }
+        self.q = quat::from_euler(roll, pitch, yaw);
+        self.c = quat::to_matrix(&self.q);
+        self.bias = bias;
+        self.v = [0.0; 3];
+        self.scale = 0.0;
+        self.f_lp = None;
+        self.cov = [[0.0; N]; N];
+        let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
+        for i in 0..3 {
+            self.cov[TH + i][TH + i] = a;
+            self.cov[BI + i][BI + i] = bias_sigma[i] * bias_sigma[i];
+            self.cov[VE + i][VE + i] = self.p.init_speed_sigma * self.p.init_speed_sigma;
+        }
+        // heading is far less known than tilt until the magnetometer speaks
+        self.cov[TH + 2][TH + 2] = (std::f64::consts::PI / 2.0).powi(2);
+        if self.p.speed_aided {
+            self.cov[SC][SC] = self.p.init_scale_sigma * self.p.init_scale_sigma;
+        }
+        self.bias_known = known;
+        self.vehicle = self.p.vehicle != Vehicle::Off;
+        self.xy_rate2 = 0.0;
+        self.acc = Accum { quasi: true, rest: true, ..Accum::default() };
+        self.rest.reset();
+        self.switching.reset();
+        self.dwell = 0.0;
+        self.mode = 2;
+        self.tick_flags = 0;
+        self.started = true;
+    }
+
+    pub fn started(&self) -> bool {
+        self.started
+    }
+
+    /// Attitude as Z-Y-X Euler angles, rad.
+    pub fn euler(&self) -> [f64; 3] {
+        quat::euler(&self.c)
+    }
+
+    pub fn quaternion(&self) -> Quat {
+        self.q
+    }
+
+    /// 1-sigma of the bias, rad/s.
+    pub fn bias_sigma(&self) -> [f64; 3] {
+        [self.cov[BI][BI].max(0.0).sqrt(), self.cov[BI + 1][BI + 1].max(0.0).sqrt(), self.cov[BI + 2][BI + 2].max(0.0).sqrt()]
+    }
+
+    /// Velocity (NED, m/s).
+    pub fn velocity(&self) -> [f64; 3] {
+        self.v
+    }
+
+    /// Forward speed at the rear axle, m/s.
+    pub fn forward_speed(&self) -> f64 {
+        rotate_t(&self.c, &self.v)[0]
+    }
+
+    /// The wheel-speed scale error estimate.
+    pub fn speed_scale(&self) -> f64 {
+        self.scale
+    }
+
+    /// Whether the vehicle model is in use.
+    pub fn vehicle(&self) -> bool {
+        self.vehicle
+    }
+
+    /// Whether the magnetometer is used (None: not decided yet).
+    pub fn magnetometer(&self) -> Option<bool> {
+        self.mag_on
+    }
+
+    /// The standstill detector's last state (for diagnostics).
+    pub fn rest_state(&self) -> Option<RestState> {
+        self.last_rest
+    }
+
+    /// The covariance (for tests).
+    pub fn covariance(&self) -> &[[f64; N]; N] {
+        &self.cov
+    }
+
+    /// A fresh wheel speed (m/s) for the next update; None = none / stale.
+    pub fn set_speed(&mut self, v: Option<f64>) {
+        self.speed = v;
+    }
+
+    fn state_is_finite(&self) -> bool {
+        self.q.iter().all(|v| v.is_finite()) && self.bias.iter().all(|v| v.is_finite()) && self.v.iter().all(|v| v.is_finite())
+    }
+
+    /// Widen the attitude (rad^2) and velocity ((m/s)^2) variances (a
+    /// counter gap: the gyro was not integrated across it).
+    pub fn resync(&mut self, att_var: f64, vel_var: f64) {
+        for i in 0..3 {
+            self.cov[TH + i][TH + i] += att_var;
+            self.cov[VE + i][VE + i] += vel_var;
+        }
+        self.rest.reset();
+        self.switching.reset();
+        self.dwell = 0.0;
+    }
+
+    /// One sample; returns (mode, flags).
+    pub fn step(&mut self, s: &StepIn) -> (u8, u16) {
+        let dt = s.dt;
+        let gyro = [s.gyro[0] * D2R, s.gyro[1] * D2R, s.gyro[2] * D2R];
+        for i in 0..3 {
+            self.bias[i] += s.dbias[i] * D2R;
+        }
+        let w = [gyro[0] - self.bias[0], gyro[1] - self.bias[1], gyro[2] - self.bias[2]];
+        if dt > 0.0 {
+            let dq = quat::from_rotvec(&[w[0] * dt, w[1] * dt, w[2] * dt]);
+            self.q = quat::mul(&self.q, &dq);
+            quat::normalise(&mut self.q);
+            self.c = quat::to_matrix(&self.q);
+            let f = rotate(&self.c, &s.accel);
+            let al = (dt / self.p.accel_tau).min(1.0);
+            self.f_lp = Some(match self.f_lp {
+                None => f,
+                Some(lp) => [lp[0] + (f[0] - lp[0]) * al, lp[1] + (f[1] - lp[1]) * al, lp[2] + (f[2] - lp[2]) * al],
+            });
+            let gl = s.g0 * G;
+            for i in 0..3 {
+                self.v[i] += f[i] * gl * dt;
+            }
+            self.v[2] += gl * dt;
+            let a = &mut self.acc;
+            for i in 0..3 {
+                for j in 0..3 {
+                    a.s_c[i][j] += self.c[i][j] * dt;
+                }
+                a.dv[i] += f[i] * gl * dt;
+            }
+            a.t += dt;
+            a.turned += norm(&w) * dt;
+            if self.vehicle && self.p.vehicle == Vehicle::Auto {
+                self.xy_rate2 += (w[0] * w[0] + w[1] * w[1] - self.xy_rate2) * (dt / 1.0).min(1.0);
+                // a car body never tilts past 45 deg either
+                if self.xy_rate2 > self.p.handheld_rate * self.p.handheld_rate || self.c[2][2] < std::f64::consts::FRAC_1_SQRT_2 {
+                    self.vehicle = false;
+                }
+            }
+        }
+        // The magnetometer decision (auto): the mean |m| over the g0 window.
+        if self.mag_on.is_none() {
+            match self.p.mag {
+                MagUse::On => self.mag_on = Some(true),
+                MagUse::Off => self.mag_on = Some(false),
+                MagUse::Auto => {
+                    self.mag_sum += norm(&s.magn);
+                    self.mag_n += 1;
+                    if s.t >= self.p.g0_window_s {
+                        let m = self.mag_sum / self.mag_n as f64;
+                        self.mag_on = Some(m > 0.1 && m < 1.0);
+                    }
+                }
+            }
+        }
+        // Policy: the paper's switching, the turn rate, the dwell.
+        let dec = self.switching.classify(&s.accel, s.g0);
+        let bs = self.bias_sigma();
+        let bsmax = bs[0].max(bs[1]).max(bs[2]);
+        let rest = if s.suspect {
+            self.rest.reset();
+            None
+        } else {
+            Some(self.rest.push(&gyro, &s.accel, dt.max(1e-6), s.g0, &self.bias, bsmax))
+        };
+        let at_rest = rest.is_some_and(|r| r.rest);
+        let turn = norm(&w) > self.p.turn_rate;
+        let quiet = dec.band == Band::Inner && !dec.jerk && !turn && !s.suspect;
+        self.dwell = if quiet { self.dwell + dt } else { 0.0 };
+        let a = &mut self.acc;
+        a.n += 1;
+        for i in 0..3 {
+            a.gyro[i] += gyro[i];
+            a.omega[i] += w[i];
+            a.magn[i] += s.magn[i];
+            a.accel[i] += s.accel[i];
+        }
+        a.suspect |= s.suspect;
+        a.quasi &= at_rest || self.dwell >= self.p.dwell_s;
+        a.rest &= at_rest;
+        if rest.is_some() {
+            self.last_rest = rest;
+        }
+        let mut fl = 0u16;
+        if dec.jerk {
+            fl |= flags::JERK;
+        }
+        if self.acc.t + 1e-9 >= self.p.tick_s {
+            self.tick(s.temp);
+        }
+        if !self.state_is_finite() {
+            // cannot happen with finite input; never let a NaN out
+            self.started = false;
+            fl |= flags::RESYNC;
+        }
+        (self.mode, fl | self.tick_flags)
+    }
+
+    /// Propagate the covariance over the accumulated interval and run the
+    /// measurement updates the policy allows.
+    fn tick(&mut self, temp: f64) {
+        let a = std::mem::take(&mut self.acc);
+        self.acc = Accum { quasi: true, rest: true, ..Accum::default() };
+        let t = a.t;
+        if t <= 0.0 || a.n == 0 {
+            return;
+        }
+        self.propagate(&a);
+        let n = a.n as f64;
+        let mut fl = 0u16;
+        let mut o = Outcome::default();
+        self.dx = [0.0; N];
+        let omega = [a.omega[0] / n, a.omega[1] / n, a.omega[2] / n];
+        let still = a.rest && !a.suspect;
+        // A steady signal at a speed the filter is sure of is a smooth
+        // cruise, not a standstill: the gyro still reads the bias on a
+        // straight and gravity is still gravity, but the velocity is not zero.
+        // The speed is taken when the signal becomes steady: a velocity that
+        // grows while the unit is still is the tilt's error, not a cruise.
+        if !still {
+            self.still_speed = None;
+        } else if self.still_speed.is_none() {
+            let sv = (self.cov[VE][VE] + self.cov[VE + 1][VE + 1] + self.cov[VE + 2][VE + 2]).max(0.0).sqrt();
+            self.still_speed = Some((norm(&self.v), sv));
+        }
+        let cruising = self.still_speed.is_some_and(|(v, sv)| v > CRUISE_SPEED.max(3.0 * sv));
+        let at_rest = still && !cruising;
+        // The paper's policy: what takes the accelerometer for gravity (the
+        // low-passed tilt and the bounded velocity of a unit that is not a
+        // vehicle) teaches the bias only when the data say quasi-static, or
+        // while no standstill or saved bias has made it known (a turn-on bias
+        // of several deg/s must not wait for a stop that may never come).
+        // What holds under any acceleration (standstill, the vehicle
+        // constraint, the wheel speed, the magnetic heading) always does.
+        let learn_gravity = (a.quasi || !self.bias_known) && !a.suspect;
+        let learn = !a.suspect;
+        if still {
+            if at_rest {
+                fl |= flags::STANDSTILL;
+                self.counters.rest_s += t;
+            }
+            self.still_updates(&a, at_rest, &mut o);
+            if o.refused {
+                self.refused_still += t;
+            } else {
+                self.refused_still = 0.0;
+            }
+            if at_rest && self.refused_still >= self.p.relevel_s {
+                self.inject();
+                self.relevel();
+                fl |= flags::RELEVEL;
+                o.fused = true;
+                o.learned = true;
+            }
+            self.nhc_refused = 0.0;
+        } else {
+            self.refused_still = 0.0;
+            if !a.suspect {
+                let learn_v = if self.vehicle { learn } else { learn_gravity };
+                let (f, g) = self.velocity_updates(&omega, learn_v, self.p.gate);
+                o.fused |= f;
+                o.learned |= f && learn_v;
+                if g {
+                    fl |= flags::GATED;
+                    self.counters.gated_s += t;
+                    self.nhc_refused += t;
+                    self.counters.refused_max_s = self.counters.refused_max_s.max(self.nhc_refused);
+                } else {
+                    self.nhc_refused = 0.0;
+                }
+            }
+        }
+        if self.p.speed_aided && !a.suspect {
+            if let Some(vw) = self.speed {
+                fl |= flags::SPEED_AIDED;
+                self.counters.speed_used_s += t;
+                if self.speed_update(vw, &omega, learn, self.p.gate) == Upd::Fused {
+                    o.fused = true;
+                }
+            }
+        }
+        if self.mag_on == Some(true) && !a.suspect {
+            let m = [a.magn[0] / n, a.magn[1] / n, a.magn[2] / n];
+            match self.heading_update(&m, at_rest, learn, self.p.gate) {
+                Some(true) => o.fused = true,
+                Some(false) => {}
+                None => {
+                    fl |= flags::MAG_DISTURBED;
+                    self.counters.mag_disturbed_s += t;
+                }
+            }
+        }
+        if self.nhc_refused >= self.p.relevel_s {
+            // The velocity constraints have been refused for long: the
+            // velocity, not the vehicle, is wrong. Widen it so they take hold
+            // again (the attitude is left alone: it is what they correct).
+            for i in 0..3 {
+                self.cov[VE + i][VE + i] += 1.0;
+            }
+            self.nhc_refused = 0.0;
+            self.counters.reacquired += 1;
+        }
+        self.inject();
+        if at_rest {
+            self.bias_known = true;
+            self.rest_point = Some((temp, self.bias_deg(), t));
+        } else {
+            self.rest_point = None;
+        }
+        if o.learned && o.fused {
+            self.last_learned = Some((temp, self.bias_deg()));
+        }
+        self.mode = match (o.fused, o.learned) {
+            (true, true) => 0,
+            (true, false) => 1,
+            _ => 2,
+        };
+        if !self.bias_known {
+            fl |= flags::LEARNING;
+        }
+        if o.refused {
+            fl |= flags::GATED;
+        }
+        self.tick_flags = fl;
+    }
+
+    /// The updates of a still unit: the gyro reads the bias (zero-rate
+    /// update), the specific force is gravity, and at a standstill (not a
+    /// smooth cruise) the velocity is zero. Noise from the rest detector.
+    fn still_updates(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome) {
+        let n = a.n as f64;
+        let gate = self.p.gate;
+        let all = Gain { tilt: true, bias: true };
+        let note = |u: Upd, o: &mut Outcome| match u {
+            Upd::Fused => {
+                o.fused = true;
+                o.learned = true;
+            }
+            Upd::Gated => o.refused = true,
+            Upd::Skipped => {}
+        };
+        if at_rest {
+            for i in 0..3 {
+                let mut h = [0.0; N];
+                h[VE + i] = 1.0;
+                let u = self.update(&h, -self.v[i], self.p.zupt_var, all, gate);
+                note(u, o);
+            }
+        }
+        let gvar = self.last_rest.map_or(self.p.zru_floor, |r| r.gyro_var / 3.0);
+        let r_zru = (gvar / n).max(self.p.zru_floor);
+        for i in 0..3 {
+            let mut h = [0.0; N];
+            h[BI + i] = 1.0;
+            let u = self.update(&h, a.gyro[i] / n - self.bias[i], r_zru, all, gate);
+            note(u, o);
+        }
+        let f = [a.accel[0] / n, a.accel[1] / n, a.accel[2] / n];
+        let fnm = norm(&f);
+        if fnm > 0.5 {
+            let u = rotate(&self.c, &[f[0] / fnm, f[1] / fnm, f[2] / fnm]);
+            let avar = self.last_rest.map_or(1e-4, |r| r.accel_var / 3.0);
+            let r_tilt = (avar / n).max(self.p.tilt_floor);
+            // u = -e_z + (dθ_y, -dθ_x, 0)
+            let mut h = [0.0; N];
+            h[TH + 1] = 1.0;
+            let up = self.update(&h, u[0], r_tilt, all, gate);
+            note(up, o);
+            let mut h = [0.0; N];
+            h[TH] = -1.0;
+            let up = self.update(&h, u[1], r_tilt, all, gate);
+            note(up, o);
+        }
+    }
+
+    fn bias_deg(&self) -> [f64; 3] {
+        [self.bias[0] / D2R, self.bias[1] / D2R, self.bias[2] / D2R]
+    }
+
+    /// `P = Φ P Φ^T + Q` with `Φ = [[I, A, 0, 0], [0, I, 0, 0], [B, D, I, 0], [0, 0, 0, 1]]`,
+    /// `A = -Σ C dt`, `B = -[Σ C f dt ×]`, `D ≈ B A / 2`.
+    fn propagate(&mut self, a: &Accum) {
+        let mut am = [[0.0; 3]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                am[i][j] = -a.s_c[i][j];
+            }
+        }
+        let d = a.dv;
+        // B = -[d×]
+        let bm = [[0.0, d[2], -d[1]], [-d[2], 0.0, d[0]], [d[1], -d[0], 0.0]];
+        let mut dm = [[0.0; 3]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                dm[i][j] = 0.5 * (bm[i][0] * am[0][j] + bm[i][1] * am[1][j] + bm[i][2] * am[2][j]);
+            }
+        }
+        let p = &mut self.cov;
+        // M = Φ P (rows): θ rows += A P_b·; v rows += B P_θ· + D P_b·
+        let mut m = *p;
+        for i in 0..3 {
+            for k in 0..N {
+                let mut sth = 0.0;
+                let mut sv = 0.0;
+                for j in 0..3 {
+                    sth += am[i][j] * p[BI + j][k];
+                    sv += bm[i][j] * p[TH + j][k] + dm[i][j] * p[BI + j][k];
+                }
+                m[TH + i][k] += sth;
+                m[VE + i][k] += sv;
+            }
+        }
+        // P' = M Φ^T (columns): θ cols += M_·b A^T; v cols += M_·θ B^T + M_·b D^T
+        let mut out = m;
+        for k in 0..N {
+            for i in 0..3 {
+                let mut sth = 0.0;
+                let mut sv = 0.0;
+                for j in 0..3 {
+                    sth += m[k][BI + j] * am[i][j];
+                    sv += m[k][TH + j] * bm[i][j] + m[k][BI + j] * dm[i][j];
+                }
+                out[k][TH + i] += sth;
+                out[k][VE + i] += sv;
+            }
+        }
+        let t = a.t;
+        let turned = self.p.gyro_scale * a.turned;
+        for i in 0..3 {
+            out[TH + i][TH + i] += self.p.q_gyro * t + turned * turned;
+            out[BI + i][BI + i] += self.p.q_bias * t;
+            out[VE + i][VE + i] += self.p.q_accel * t;
+        }
+        if self.p.speed_aided {
+            out[SC][SC] += self.p.q_scale * t;
+        }
+        // keep it symmetric
+        for i in 0..N {
+            for j in 0..i {
+                let v = 0.5 * (out[i][j] + out[j][i]);
+                out[i][j] = v;
+                out[j][i] = v;
+            }
+        }
+        *p = out;
+    }
+
+    /// One scalar update `nu = h dx + noise(r)`, gated; the gain rows of the
+    /// tilt and the bias only where allowed (Joseph form keeps P right for
+    /// the restricted gain). Accumulates into `dx`.
+    fn update(&mut self, h: &[f64; N], nu: f64, r: f64, gain: Gain, gate: f64) -> Upd {
+        let p = &self.cov;
+        let mut u = [0.0; N];
+        for i in 0..N {
+            let mut s = 0.0;
+            for j in 0..N {
+                s += p[i][j] * h[j];
+            }
+            u[i] = s;
+        }
+        let mut s = r;
+        let mut hdx = 0.0;
+        for i in 0..N {
+            s += h[i] * u[i];
+            hdx += h[i] * self.dx[i];
+        }
+        if s.is_nan() || s <= 0.0 || s.is_infinite() {
+            return Upd::Skipped;
+        }
+        let nu = nu - hdx;
+        if nu * nu > gate * s {
+            return Upd::Gated;
+        }
+        let mut k = [0.0; N];
+        for i in 0..N {
+            k[i] = u[i] / s;
+        }
+        if !gain.tilt {
+            k[TH] = 0.0;
+            k[TH + 1] = 0.0;
+        }
+        if !gain.bias {
+            k[BI] = 0.0;
+            k[BI + 1] = 0.0;
+            k[BI + 2] = 0.0;
+        }
+        for i in 0..N {
+            self.dx[i] += k[i] * nu;
+        }
+        let p = &mut self.cov;
+        for i in 0..N {
+            for j in 0..=i {
+                let v = p[i][j] - k[i] * u[j] - u[i] * k[j] + s * k[i] * k[j];
+                p[i][j] = v;
+                p[j][i] = v;
+            }
+        }
+        Upd::Fused
+    }
+
+    /// Apply the accumulated error to the state and clear it.
+    fn inject(&mut self) {
+        let d = self.dx;
+        if d.iter().all(|v| *v == 0.0) {
+            return;
+        }
+        let dq = quat::from_rotvec(&[d[TH], d[TH + 1], d[TH + 2]]);
+        self.q = quat::mul(&dq, &self.q);
+        if let Some(lp) = self.f_lp {
+            // the low-passed force was rotated with the old attitude
+            let r = quat::to_matrix(&dq);
+            self.f_lp = Some(rotate(&r, &lp));
+        }
+        quat::normalise(&mut self.q);
+        self.c = quat::to_matrix(&self.q);
+        for i in 0..3 {
+            self.bias[i] += d[BI + i];
+            self.v[i] += d[VE + i];
+        }
+        if self.p.speed_aided {
+            self.scale += d[SC];
+        }
+        self.dx = [0.0; N];
+    }
+
+    /// The ground-vehicle constraint (no lateral / vertical velocity at the
+    /// rear axle) or, for a unit that is not a vehicle, a bounded velocity.
+    /// Returns (fused any, gated any).
+    fn velocity_updates(&mut self, omega: &[f64; 3], learn: bool, gate: f64) -> (bool, bool) {
+        let (axes, var): (&[usize], f64) = if self.vehicle { (&[1, 2], self.p.nhc_var) } else { (&[0, 1, 2], self.p.free_var) };
+        let gain = Gain { tilt: true, bias: learn };
+        let mut fused = false;
+        let mut gated = false;
+        if !self.vehicle {
+            if let Some(f) = self.f_lp {
+                let fnm = norm(&f);
+                if fnm > 0.3 {
+                    // u = -e_z + (dθ_y, -dθ_x, 0)
+                    let mut h = [0.0; N];
+                    h[TH + 1] = 1.0;
+                    match self.update(&h, f[0] / fnm, self.p.lp_tilt_var, gain, gate) {
+                        Upd::Fused => fused = true,
+                        Upd::Gated => gated = true,
+                        Upd::Skipped => {}
+                    }
+                    let mut h = [0.0; N];
+                    h[TH] = -1.0;
+                    match self.update(&h, f[1] / fnm, self.p.lp_tilt_var, gain, gate) {
+                        Upd::Fused => fused = true,
+                        Upd::Gated => gated = true,
+                        Upd::Skipped => {}
+                    }
+                }
+            }
+        }
+        for &i in axes {
+            let (nu, h) = self.body_velocity_row(i, omega);
+            match self.update(&h, -nu, var, gain, gate) {
+                Upd::Fused => fused = true,
+                Upd::Gated => gated = true,
+                Upd::Skipped => {}
+            }
+        }
+        (fused, gated)
+    }
+
+    /// Body-axis `i` velocity at the rear axle and its row of H.
+    fn body_velocity_row(&self, i: usize, omega: &[f64; 3]) -> (f64, [f64; N]) {
+        let vb = rotate_t(&self.c, &self.v);
+        let l = self.p.lever;
+        let wl = cross(omega, &l);
+        let val = vb[i] - wl[i];
+        // c_i: column i of C (body axis i in NED)
+        let ci = [self.c[0][i], self.c[1][i], self.c[2][i]];
+        let hth = cross(&ci, &self.v);
+        // -[l×] row i
+        let lx = [[0.0, -l[2], l[1]], [l[2], 0.0, -l[0]], [-l[1], l[0], 0.0]];
+        let mut h = [0.0; N];
+        for j in 0..3 {
+            h[TH + j] = hth[j];
+            h[VE + j] = ci[j];
+            h[BI + j] = -lx[i][j];
+        }
+        (val, h)
+    }
+
+    fn speed_update(&mut self, vw: f64, omega: &[f64; 3], learn: bool, gate: f64) -> Upd {
+        let (val, mut h) = self.body_velocity_row(0, omega);
+        h[SC] = -vw;
+        let nu = vw * (1.0 + self.scale) - val;
+        self.update(&h, nu, self.p.speed_var, Gain { tilt: true, bias: learn }, gate)
+    }
+
+    /// Heading from the magnetometer. Some(fused) or None when disturbed.
+    fn heading_update(&mut self, m: &[f64; 3], at_rest: bool, learn: bool, gate: f64) -> Option<bool> {
+        let mn = rotate(&self.c, m);
+        let nrm = norm(&mn);
+        let h2 = mn[0] * mn[0] + mn[1] * mn[1];
+        if nrm < 1e-6 || h2 < 1e-12 {
+            return Some(false);
+        }
+        let dip = mn[2].atan2(h2.sqrt());
+        match self.mag_ref {
+            None => {
+                if at_rest || self.mag_dist_s > 0.0 {
+                    self.mag_ref = Some((nrm, dip));
+                    self.mag_dist_s = 0.0;
+                } else {
+                    // no reference yet: take the first field as it is
+                    self.mag_ref = Some((nrm, dip));
+                }
+            }
+            Some((rn, rd)) => {
+                let disturbed = ((nrm / rn) - 1.0).abs() > self.p.mag_norm_tol || (dip - rd).abs() > self.p.mag_dip_tol;
+                self.mag_disturbed = disturbed;
+                if disturbed {
+                    self.mag_dist_s += self.p.tick_s;
+                    // a field that stays different for a minute and is steady
+                    // at a rest is the new normal (moved car, new mounting)
+                    if at_rest && self.mag_dist_s > 60.0 {
+                        self.mag_ref = Some((nrm, dip));
+                        self.mag_dist_s = 0.0;
+                    }
+                    return None;
+                }
+                self.mag_dist_s = 0.0;
+            }
+        }
+        let psi = mn[1].atan2(mn[0]);
+        let nu = wrap_pi(psi - self.p.declination);
+        let mut h = [0.0; N];
+        h[TH] = mn[0] * mn[2] / h2;
+        h[TH + 1] = mn[1] * mn[2] / h2;
+        h[TH + 2] = -1.0;
+        Some(self.update(&h, nu, self.p.yaw_var, Gain { tilt: false, bias: learn }, gate) == Upd::Fused)
+    }
+
+    /// Re-level at rest: the accelerometer (low-passed over the rest) gives
+    /// roll and pitch, the low-passed gyro the bias, the velocity is zero.
+    /// The covariances are widened to what was refused, then the rest's
+    /// updates converge them again.
+    fn relevel(&mut self) {
+        let Some(r) = self.last_rest else { return };
+        let e = quat::euler(&self.c);
+        let (roll, pitch) = crate::ekf::tilt_from_accel(&r.accel_lp);
+        let dt = ((roll - e[0]).powi(2) + (pitch - e[1]).powi(2)).max((1.0 * D2R).powi(2));
+        self.q = quat::from_euler(roll, pitch, e[2]);
+        self.c = quat::to_matrix(&self.q);
+        self.v = [0.0; 3];
+        let mut db = 0.0f64;
+        for i in 0..3 {
+            db = db.max((r.gyro_lp[i] - self.bias[i]).abs());
+            self.bias[i] = r.gyro_lp[i];
+        }
+        // decorrelate and widen tilt, bias and velocity (heading and scale keep theirs)
+        for i in [TH, TH + 1, BI, BI + 1, BI + 2, VE, VE + 1, VE + 2] {
+            for j in 0..N {
+                if j != i {
+                    self.cov[i][j] = 0.0;
+                    self.cov[j][i] = 0.0;
+                }
+            }
+        }
+        for i in 0..2 {
+            self.cov[TH + i][TH + i] = dt;
+        }
+        for i in 0..3 {
+            self.cov[BI + i][BI + i] = (db * db).max((0.1 * D2R).powi(2));
+            self.cov[VE + i][VE + i] = 0.01;
+        }
+        self.refused_still = 0.0;
+        self.counters.relevels += 1;
+    }
+}
+
+#[inline]
+fn norm(v: &[f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}

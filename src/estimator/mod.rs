@@ -1,0 +1,502 @@
+//! The estimator: `step(sample) -> estimate`. Pure: no I/O, no clock, no
+//! allocation per step. The daemon and `gyrocomp replay` both call it.
+//!
+//! This facade does what every filter needs and nothing filter-specific:
+//! - rotates each sample from the sensor frame into the vehicle frame
+//!   (`[mounting] rotation`); every output is in the vehicle frame;
+//! - the time step from the sample counter (`dt = steps / rate`); a gap
+//!   longer than `max_gap_s` is a resync (not integrated, flagged);
+//! - g0, the mean |a| over the first `g0_window_s` seconds;
+//! - the thermal curve: its change since the previous sample moves the bias
+//!   (the curve anchored at whatever the filter learned last), with the
+//!   field-learned slope correction (`[thermal] learn`) applied;
+//! - the prior (the daemon's saved bias) and what is saved.
+//!
+//! The filters, one file each, own their state:
+//! - [`mekf`] (`mode = "mekf"`, the default): quaternion error-state filter
+//!   with standstill updates and the ground-vehicle constraint;
+//! - [`paper`] (`paper`, `startup_thermal`, `startup_average`): the published
+//!   method, faithful, and its comparison cases;
+//! - [`rest`]: the standstill detector; [`crate::switching`]: the paper's
+//!   bands and acceleration-change criterion (the policy on top of both).
+
+pub mod mekf;
+pub mod paper;
+pub mod quat;
+pub mod rest;
+
+use crate::adis::Sample;
+use crate::config::{Config, Mode};
+use crate::switching::Switching;
+use crate::thermal::{SlopeLearner, SlopeParams, SlopeState, Thermal};
+use mekf::{MagUse, Mekf, MekfCounters, MekfParams, G};
+use paper::Paper;
+use rest::RestParams;
+
+const D2R: f64 = std::f64::consts::PI / 180.0;
+const R2D: f64 = 180.0 / std::f64::consts::PI;
+
+/// Health flags carried in `EST_STATUS` (the DBC puts flag bit `i` at bit `i + 2`).
+pub mod flags {
+    /// DIAG_STAT != 0: the sample was not fused.
+    pub const SUSPECT: u16 = 1 << 0;
+    /// Inside the warm-up after power-on (g0 being measured; in `paper`
+    /// mode also the warm-up exclusion: the bias is not learned).
+    pub const WARMUP: u16 = 1 << 1;
+    /// `paper`: inside the learning window. `mekf`: the bias is not known
+    /// yet (no standstill seen, no saved bias), it is being learned.
+    pub const LEARNING: u16 = 1 << 2;
+    /// A counter gap or restart: attitude was not integrated over it.
+    pub const RESYNC: u16 = 1 << 3;
+    /// The acceleration-change criterion fired.
+    pub const JERK: u16 = 1 << 4;
+    /// Temperature outside the thermal curve's calibrated range (clamped).
+    pub const THERMAL_CLAMP: u16 = 1 << 5;
+    /// An output rate saturated its signal range.
+    pub const RATE_SAT: u16 = 1 << 6;
+    /// No input sample for `daemon.silent_after_s` (set by the daemon).
+    pub const BUS_SILENT: u16 = 1 << 7;
+    /// At rest (standstill): zero-velocity and zero-rate updates.
+    pub const STANDSTILL: u16 = 1 << 8;
+    /// A measurement was refused by the innovation gate.
+    pub const GATED: u16 = 1 << 9;
+    /// Output frames were dropped on write since the last status (set by the daemon).
+    pub const TX_DROP: u16 = 1 << 10;
+    /// The filter re-levelled at rest: its gate had refused a standstill's
+    /// evidence for `relevel_s` (the filter, not the data, was wrong).
+    pub const RELEVEL: u16 = 1 << 11;
+    /// The magnetic field is disturbed (norm or dip far from the reference
+    /// learned at rest): no heading updates.
+    pub const MAG_DISTURBED: u16 = 1 << 12;
+    /// The vehicle's own speed was fused.
+    pub const SPEED_AIDED: u16 = 1 << 13;
+}
+
+/// What the estimator says about one sample. Angles deg, rates deg/s, all in
+/// the vehicle frame.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Estimate {
+    pub cnt: u16,
+    pub t_us: u64,
+    /// Seconds since the first sample, from the sample counter.
+    pub t: f64,
+    pub roll: f64,
+    pub pitch: f64,
+    pub yaw: f64,
+    /// Bias-corrected rates.
+    pub rate: [f64; 3],
+    pub bias: [f64; 3],
+    /// 0 fusion with bias learning, 1 aided without bias learning, 2 gyro only.
+    pub mode: u8,
+    pub temp: f64,
+    pub flags: u16,
+    /// |a| / g0.
+    pub ratio: f64,
+}
+
+/// What the estimator learned, for the daemon's state file.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Learned {
+    /// Bias, deg/s.
+    pub bias: [f64; 3],
+    /// 1-sigma of the bias, deg/s.
+    pub bias_sigma: [f64; 3],
+    /// Temperature at which the bias was held, deg C.
+    pub temp: f64,
+}
+
+/// One sample as the filters see it: in the vehicle frame, with the step and
+/// the thermal curve's change already worked out by the facade.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StepIn {
+    /// Time step, s (0 on the first sample).
+    pub dt: f64,
+    /// Seconds since the first sample.
+    pub t: f64,
+    /// deg/s, g, gauss, deg C.
+    pub gyro: [f64; 3],
+    pub accel: [f64; 3],
+    pub magn: [f64; 3],
+    pub temp: f64,
+    pub g0: f64,
+    /// The thermal curve's change since the previous sample, deg/s.
+    pub dbias: [f64; 3],
+    pub suspect: bool,
+}
+
+/// The filter in use. Built once per power cycle, so the variants' sizes
+/// do not matter; the default filter stays inline for the hot path.
+#[derive(Clone, Debug)]
+#[allow(clippy::large_enum_variant)]
+enum Filter {
+    Paper(Paper),
+    Mekf(Mekf),
+}
+
+#[derive(Clone, Debug)]
+pub struct Estimator {
+    mode: Mode,
+    period: f64,
+    max_gap: f64,
+    g0_window: f64,
+    warmup: f64,
+    /// Sensor to vehicle rotation (None = identity).
+    mount: Option<quat::Mat3>,
+    thermal_on: bool,
+    thermal: Thermal,
+    /// The configured curve (`thermal` = this plus the learned slope correction).
+    thermal_base: Thermal,
+    slope: Option<SlopeLearner>,
+    slope_after: f64,
+    filter: Filter,
+    started: bool,
+    t: f64,
+    g0: f64,
+    g0_sum: f64,
+    g0_n: u64,
+    temp_prev: f64,
+    prior: Option<Learned>,
+    init_bias_sigma: f64,
+}
+
+/// The default filter's settings from the config.
+pub fn mekf_params(cfg: &Config) -> MekfParams {
+    let p = cfg.profile();
+    let k = &cfg.ekf;
+    let m = &cfg.mekf;
+    let r = &cfg.rest;
+    let mag = if !p.magnetometer {
+        MagUse::Off
+    } else {
+        match cfg.estimator.use_magnetometer {
+            crate::config::AutoBool::Auto => MagUse::Auto,
+            crate::config::AutoBool::Bool(true) => MagUse::On,
+            crate::config::AutoBool::Bool(false) => MagUse::Off,
+        }
+    };
+    MekfParams {
+        tick_s: 1.0 / m.update_hz,
+        q_gyro: (k.gyro_noise * D2R).powi(2),
+        gyro_scale: m.gyro_scale_error,
+        q_bias: (k.bias_walk * D2R).powi(2),
+        q_accel: m.accel_noise * m.accel_noise,
+        q_scale: m.scale_walk * m.scale_walk,
+        nhc_var: m.nhc_sigma * m.nhc_sigma,
+        vehicle: match m.vehicle {
+            crate::config::AutoBool::Auto => mekf::Vehicle::Auto,
+            crate::config::AutoBool::Bool(true) => mekf::Vehicle::On,
+            crate::config::AutoBool::Bool(false) => mekf::Vehicle::Off,
+        },
+        handheld_rate: m.handheld_rate_dps * D2R,
+        free_var: m.free_velocity_sigma * m.free_velocity_sigma,
+        accel_tau: m.accel_tau_s,
+        lp_tilt_var: (m.tilt_sigma_deg * D2R).powi(2),
+        zupt_var: m.zupt_sigma * m.zupt_sigma,
+        tilt_floor: (m.rest_tilt_sigma_deg * D2R).powi(2),
+        zru_floor: (m.zru_sigma_dps * D2R).powi(2),
+        yaw_var: (k.yaw_sigma_deg * D2R).powi(2),
+        speed_var: m.speed_sigma * m.speed_sigma,
+        gate: m.gate_sigma * m.gate_sigma,
+        relevel_s: m.relevel_s,
+        lever: cfg.mounting.lever_arm,
+        mag,
+        declination: cfg.estimator.declination_deg * D2R,
+        mag_norm_tol: m.mag_norm_tol,
+        mag_dip_tol: m.mag_dip_tol_deg * D2R,
+        init_angle_sigma: k.init_angle_sigma_deg * D2R,
+        init_bias_sigma: cfg.init_bias_sigma() * D2R,
+        init_speed_sigma: m.init_speed_sigma,
+        init_scale_sigma: 0.03,
+        dwell_s: m.dwell_s,
+        turn_rate: m.turn_rate_dps * D2R,
+        rest: RestParams {
+            tau_s: r.tau_s,
+            min_s: r.min_s,
+            gyro_dev: r.gyro_dev_dps * D2R,
+            accel_dev: r.accel_dev_g,
+            band: r.band,
+            rate: r.rate_dps * D2R,
+        },
+        g0_window_s: cfg.estimator.g0_window_s,
+        speed_aided: cfg.speed.enabled(),
+    }
+}
+
+impl Estimator {
+    pub fn new(cfg: &Config) -> Estimator {
+        let p = cfg.profile();
+        let e = &cfg.estimator;
+        let switching = Switching::new(&cfg.switching, p.rate_hz);
+        let filter = match e.mode {
+            Mode::Mekf => Filter::Mekf(Mekf::new(mekf_params(cfg), switching)),
+            _ => {
+                let use_mag = p.magnetometer && !matches!(e.use_magnetometer, crate::config::AutoBool::Bool(false));
+                Filter::Paper(Paper::new(cfg, switching, use_mag))
+            }
+        };
+        let r = cfg.mounting.matrix();
+        Estimator {
+            mode: e.mode,
+            period: 1.0 / p.rate_hz,
+            max_gap: e.max_gap_s,
+            g0_window: e.g0_window_s,
+            warmup: e.warmup_s,
+            mount: r,
+            thermal_on: cfg.thermal.enabled && e.mode != Mode::StartupAverage,
+            thermal: Thermal::new(&cfg.thermal),
+            thermal_base: Thermal::new(&cfg.thermal),
+            slope: (cfg.thermal.learn && cfg.thermal.enabled).then(|| {
+                let th = &cfg.thermal;
+                SlopeLearner::new(SlopeParams { min_spread: th.learn_min_spread, max_dev: th.learn_max_dev }, th.p1)
+            }),
+            slope_after: cfg.thermal.learn_after_s,
+            filter,
+            started: false,
+            t: 0.0,
+            g0: 1.0,
+            g0_sum: 0.0,
+            g0_n: 0,
+            temp_prev: 0.0,
+            prior: None,
+            init_bias_sigma: cfg.init_bias_sigma(),
+        }
+    }
+
+    /// Start from a bias learned earlier (loaded before the first sample).
+    /// It replaces the thermal curve's absolute value as the prior.
+    pub fn set_prior(&mut self, prior: Learned) {
+        self.prior = Some(prior);
+    }
+
+    /// The bias the estimator holds now and at what temperature, for saving:
+    /// the bias of the last sample that learned it.
+    pub fn learned(&self) -> Option<Learned> {
+        if !self.started {
+            return self.prior;
+        }
+        let l = match &self.filter {
+            Filter::Paper(p) => p.learned(),
+            Filter::Mekf(m) => m.last_learned.map(|(temp, bias)| {
+                let s = m.bias_sigma();
+                Learned { bias, bias_sigma: [s[0] * R2D, s[1] * R2D, s[2] * R2D], temp }
+            }),
+        };
+        l.or(self.prior)
+    }
+
+    /// The thermal curve in use (its `p1` includes the learned correction).
+    pub fn thermal(&self) -> &Thermal {
+        &self.thermal
+    }
+
+    /// What the slope learner has learned (None when `[thermal] learn` is off), for saving.
+    pub fn slope_state(&self) -> Option<SlopeState> {
+        self.slope.as_ref().map(|l| l.state())
+    }
+
+    /// Continue slope learning from a saved state (before the first sample).
+    /// False when learning is off or the state was saved under another `p1`.
+    pub fn set_slope_state(&mut self, st: &SlopeState) -> bool {
+        let ok = self.slope.as_mut().is_some_and(|l| l.restore(st));
+        self.apply_slope();
+        ok
+    }
+
+    fn apply_slope(&mut self) {
+        if let Some(l) = &self.slope {
+            let c = l.correction();
+            for i in 0..3 {
+                self.thermal.p1[i] = self.thermal_base.p1[i] + c[i];
+            }
+        }
+    }
+
+    pub fn g0(&self) -> f64 {
+        self.g0
+    }
+
+    /// The default filter's counters (None in the paper's modes).
+    pub fn mekf_counters(&self) -> Option<MekfCounters> {
+        match &self.filter {
+            Filter::Mekf(m) => Some(m.counters),
+            Filter::Paper(_) => None,
+        }
+    }
+
+    /// Whether the magnetometer is in use (None: not decided yet).
+    pub fn magnetometer(&self) -> Option<bool> {
+        match &self.filter {
+            Filter::Mekf(m) => m.magnetometer(),
+            Filter::Paper(_) => None,
+        }
+    }
+
+    /// The default filter (for tests and diagnostics).
+    pub fn mekf(&self) -> Option<&Mekf> {
+        match &self.filter {
+            Filter::Mekf(m) => Some(m),
+            Filter::Paper(_) => None,
+        }
+    }
+
+    /// The paper's EKF (for tests and diagnostics).
+    pub fn paper(&self) -> Option<&Paper> {
+        match &self.filter {
+            Filter::Paper(p) => Some(p),
+            Filter::Mekf(_) => None,
+        }
+    }
+
+    /// A fresh vehicle speed (m/s) for the default filter, None when there
+    /// is none (not configured, stale or implausible).
+    pub fn set_speed(&mut self, v: Option<f64>) {
+        if let Filter::Mekf(m) = &mut self.filter {
+            m.set_speed(v);
+        }
+    }
+
+    /// The initial bias (deg/s) and its sigma: the prior moved by the curve
+    /// to this temperature, else the curve's absolute value.
+    fn initial_bias(&self, temp: f64) -> ([f64; 3], Option<[f64; 3]>) {
+        match (&self.prior, self.mode) {
+            (Some(pr), _) => {
+                let d = if self.thermal_on { self.thermal.delta(pr.temp, temp) } else { [0.0; 3] };
+                ([pr.bias[0] + d[0], pr.bias[1] + d[1], pr.bias[2] + d[2]], Some(pr.bias_sigma))
+            }
+            (None, Mode::StartupAverage) => ([0.0; 3], None),
+            (None, _) if self.thermal_on => (self.thermal.bias(temp), None),
+            (None, _) => ([0.0; 3], None),
+        }
+    }
+
+    fn start(&mut self, s: &StepIn) {
+        let (bias, sigma) = self.initial_bias(s.temp);
+        match &mut self.filter {
+            Filter::Paper(p) => p.start(s, bias, sigma),
+            Filter::Mekf(m) => {
+                let sig = sigma.map_or([self.init_bias_sigma * D2R; 3], |v| v.map(|x| (x * D2R).max(1e-4 * D2R)));
+                m.start(&s.accel, &s.magn, bias.map(|b| b * D2R), sig, sigma.is_some());
+            }
+        }
+        self.temp_prev = s.temp;
+        self.started = true;
+        self.t = 0.0;
+    }
+
+    /// Step the estimator on one sample.
+    pub fn step(&mut self, s: &Sample) -> Estimate {
+        let mut fl = 0u16;
+        let mut dt = s.steps as f64 * self.period;
+        let (gyro, accel, magn) = match &self.mount {
+            None => (s.gyro, s.accel, s.magn),
+            Some(r) => (quat::rotate(r, &s.gyro), quat::rotate(r, &s.accel), quat::rotate(r, &s.magn)),
+        };
+        let mut inp = StepIn { dt: 0.0, t: 0.0, gyro, accel, magn, temp: s.temp, g0: self.g0, dbias: [0.0; 3], suspect: s.suspect() };
+        let mut resync = false;
+        if !self.started {
+            self.start(&inp);
+            dt = 0.0;
+        } else if s.steps == 0 || dt > self.max_gap {
+            // Unknown or long gap: do not integrate the gyro across it.
+            fl |= flags::RESYNC;
+            resync = true;
+            dt = self.period;
+        }
+        self.t += dt;
+        let t = self.t;
+
+        // g0: mean |a| over the first g0_window seconds.
+        if t < self.g0_window || self.g0_n == 0 {
+            let amag = (accel[0] * accel[0] + accel[1] * accel[1] + accel[2] * accel[2]).sqrt();
+            if amag > 0.0 {
+                self.g0_sum += amag;
+                self.g0_n += 1;
+                self.g0 = self.g0_sum / self.g0_n as f64;
+            }
+            fl |= flags::WARMUP;
+        }
+        if t < self.warmup && self.mode == Mode::Mekf {
+            fl |= flags::WARMUP;
+        }
+
+        if self.thermal_on && self.thermal.clamps(s.temp) {
+            fl |= flags::THERMAL_CLAMP;
+        }
+        let db = if self.thermal_on { self.thermal.delta(self.temp_prev, s.temp) } else { [0.0; 3] };
+        self.temp_prev = s.temp;
+        inp.dt = dt;
+        inp.t = t;
+        inp.g0 = self.g0;
+        inp.dbias = db;
+
+        let thermal = &self.thermal;
+        let thermal_on = self.thermal_on;
+        let (mode, ffl, ratio, att, bias, slope_point, finite) = match &mut self.filter {
+            Filter::Paper(p) => {
+                if resync {
+                    p.resync();
+                }
+                let (mode, ffl, ratio, sp) = p.step(&inp, thermal_on, |a, b| thermal.delta(a, b));
+                let b = p.bias_deg();
+                (mode, ffl, ratio, p.attitude(), b, sp.then_some((s.temp, b, dt)), p.state_is_finite())
+            }
+            Filter::Mekf(m) => {
+                if resync {
+                    m.resync((5.0 * D2R).powi(2), 4.0);
+                }
+                let (mode, ffl) = m.step(&inp);
+                let a = accel;
+                let ratio = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt() / self.g0;
+                let b = m.bias;
+                let sp = m.rest_point.take();
+                (mode, ffl, ratio, m.euler(), [b[0] * R2D, b[1] * R2D, b[2] * R2D], sp, m.started())
+            }
+        };
+        fl |= ffl;
+        if s.suspect() {
+            fl |= flags::SUSPECT;
+        }
+
+        // Field learning of the thermal slope: the filter's learning points
+        // after `learn_after_s`, inside the calibrated range.
+        if let (Some((temp, b, w)), true) = (slope_point, t >= self.slope_after) {
+            if !self.thermal.clamps(temp) {
+                let c = self.thermal_base.bias(temp);
+                if let Some(l) = self.slope.as_mut() {
+                    l.push(temp, [b[0] - c[0], b[1] - c[1], b[2] - c[2]], w);
+                }
+                self.apply_slope();
+            }
+        }
+
+        if !finite {
+            // Cannot happen with finite input; never let a NaN reach the bus.
+            self.started = false;
+            let keep_t = self.t;
+            self.start(&inp);
+            self.t = keep_t;
+            fl |= flags::RESYNC;
+        }
+
+        Estimate {
+            cnt: s.cnt,
+            t_us: s.t_us,
+            t,
+            roll: att[0] * R2D,
+            pitch: att[1] * R2D,
+            yaw: att[2] * R2D,
+            rate: [gyro[0] - bias[0], gyro[1] - bias[1], gyro[2] - bias[2]],
+            bias,
+            mode,
+            temp: s.temp,
+            flags: fl,
+            ratio,
+        }
+    }
+}
+
+/// Standard gravity, m/s^2 (for tools that convert g).
+pub const STANDARD_GRAVITY: f64 = G;
+
+#[cfg(test)]
+mod tests;

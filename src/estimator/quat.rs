@@ -1,0 +1,155 @@
+//! Small rotation helpers for the default filter: unit quaternions
+//! `[w, x, y, z]` (body to navigation frame, Hamilton product), the rotation
+//! matrix `C_nb` and Z-Y-X Euler angles (used only at the output).
+
+pub type Quat = [f64; 4];
+pub type Mat3 = [[f64; 3]; 3];
+
+/// `a ⊗ b`.
+#[inline]
+pub fn mul(a: &Quat, b: &Quat) -> Quat {
+    [
+        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
+    ]
+}
+
+/// Normalise (and keep `w >= 0`, one of the two equal quaternions).
+#[inline]
+pub fn normalise(q: &mut Quat) {
+    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    let s = if q[0] < 0.0 { -1.0 / n } else { 1.0 / n };
+    for v in q.iter_mut() {
+        *v *= s;
+    }
+}
+
+/// The quaternion of a rotation vector `r` (rad).
+#[inline]
+pub fn from_rotvec(r: &[f64; 3]) -> Quat {
+    let a2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+    if a2 < 1e-8 {
+        // second-order series; exact to the double's precision at this size
+        let s = 0.5 - a2 / 48.0;
+        [1.0 - a2 / 8.0, r[0] * s, r[1] * s, r[2] * s]
+    } else {
+        let a = a2.sqrt();
+        let (sn, cs) = (0.5 * a).sin_cos();
+        let s = sn / a;
+        [cs, r[0] * s, r[1] * s, r[2] * s]
+    }
+}
+
+/// `C_nb` of `q` (body vector to navigation vector).
+#[inline]
+pub fn to_matrix(q: &Quat) -> Mat3 {
+    let [w, x, y, z] = *q;
+    let (xx, yy, zz) = (x * x, y * y, z * z);
+    let (xy, xz, yz) = (x * y, x * z, y * z);
+    let (wx, wy, wz) = (w * x, w * y, w * z);
+    [
+        [1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy)],
+        [2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx)],
+        [2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy)],
+    ]
+}
+
+/// The quaternion of Z-Y-X Euler angles (rad).
+pub fn from_euler(roll: f64, pitch: f64, yaw: f64) -> Quat {
+    let (sr, cr) = (0.5 * roll).sin_cos();
+    let (sp, cp) = (0.5 * pitch).sin_cos();
+    let (sy, cy) = (0.5 * yaw).sin_cos();
+    let mut q = [cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy];
+    normalise(&mut q);
+    q
+}
+
+/// Z-Y-X Euler angles `[roll, pitch, yaw]` (rad) of `C_nb`. At exactly
+/// vertical (|pitch| = 90 deg) roll and yaw are one angle; the split is
+/// arbitrary but finite.
+#[inline]
+pub fn euler(c: &Mat3) -> [f64; 3] {
+    let s = (-c[2][0]).clamp(-1.0, 1.0);
+    [c[2][1].atan2(c[2][2]), s.asin(), c[1][0].atan2(c[0][0])]
+}
+
+/// `C v`.
+#[inline]
+pub fn rotate(c: &Mat3, v: &[f64; 3]) -> [f64; 3] {
+    [
+        c[0][0] * v[0] + c[0][1] * v[1] + c[0][2] * v[2],
+        c[1][0] * v[0] + c[1][1] * v[1] + c[1][2] * v[2],
+        c[2][0] * v[0] + c[2][1] * v[1] + c[2][2] * v[2],
+    ]
+}
+
+/// `C^T v`.
+#[inline]
+pub fn rotate_t(c: &Mat3, v: &[f64; 3]) -> [f64; 3] {
+    [
+        c[0][0] * v[0] + c[1][0] * v[1] + c[2][0] * v[2],
+        c[0][1] * v[0] + c[1][1] * v[1] + c[2][1] * v[2],
+        c[0][2] * v[0] + c[1][2] * v[1] + c[2][2] * v[2],
+    ]
+}
+
+#[inline]
+pub fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+/// The matrix of Z-Y-X Euler angles (rad), `C_nb`.
+pub fn matrix_from_euler(roll: f64, pitch: f64, yaw: f64) -> Mat3 {
+    to_matrix(&from_euler(roll, pitch, yaw))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn euler_round_trip_and_matrix_agree() {
+        for &(r, p, y) in &[(0.1, -0.2, 0.3), (3.0, 1.2, -2.9), (-1.5, -1.55, 0.0), (0.0, 0.0, 3.1)] {
+            let q = from_euler(r, p, y);
+            let e = euler(&to_matrix(&q));
+            assert!((e[0] - r).abs() < 1e-9 && (e[1] - p).abs() < 1e-9 && (e[2] - y).abs() < 1e-9, "{e:?} vs {r} {p} {y}");
+            // C_nb = Rz(y) Ry(p) Rx(r)
+            let (sr, cr) = r.sin_cos();
+            let (sp, cp) = p.sin_cos();
+            let (sy, cy) = y.sin_cos();
+            let want = [
+                [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                [-sp, cp * sr, cp * cr],
+            ];
+            let c = to_matrix(&q);
+            for i in 0..3 {
+                for j in 0..3 {
+                    assert!((c[i][j] - want[i][j]).abs() < 1e-12);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn rotation_vector_integration_is_exact_for_a_constant_rate() {
+        // 1000 steps of 0.9 deg about a fixed axis = 900 deg about it
+        let axis = [0.6, -0.0, 0.8];
+        let step = 0.9f64.to_radians();
+        let mut q = [1.0, 0.0, 0.0, 0.0];
+        for _ in 0..1000 {
+            q = mul(&q, &from_rotvec(&[axis[0] * step, axis[1] * step, axis[2] * step]));
+            normalise(&mut q);
+        }
+        let want = from_rotvec(&[axis[0] * 5.0 * std::f64::consts::PI, 0.0, axis[2] * 5.0 * std::f64::consts::PI]);
+        let c = to_matrix(&q);
+        let w = to_matrix(&want);
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!((c[i][j] - w[i][j]).abs() < 1e-9);
+            }
+        }
+    }
+}

@@ -1,0 +1,203 @@
+//! Standstill (rest) detection from the gyro and the accelerometer alone.
+//!
+//! A unit at rest measures its gyro bias on all three axes and gravity alone
+//! on the accelerometer: the strongest bias information a vehicle gets. The
+//! detector looks at how much the signals *move*, not at their level, so a
+//! gyro bias of several deg/s does not hide a standstill:
+//!
+//! - the gyro and the specific force are low-passed (first order, time
+//!   constant `tau_s`), and the mean square deviation of each sample from its
+//!   low-passed value is low-passed alike: its square root is the signal's
+//!   RMS deviation, which engine idle vibration raises a little and driving
+//!   (road input, steering, speed changes) raises a lot;
+//! - rest needs the gyro deviation under `gyro_dev_dps`, the accelerometer
+//!   deviation under `accel_dev_g`, the low-passed |f| within `band` of g0
+//!   (a steady 0.2 g acceleration is 2 % off), and the low-passed,
+//!   bias-corrected rate under `rate_dps` plus three bias sigmas (a steady turn
+//!   is steady too; before the bias is known this test is necessarily loose);
+//! - all of it for `min_s` seconds without a break.
+//!
+//! No allocation, O(1) per sample.
+
+/// Thresholds of the detector (`[rest]` in the config).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RestParams {
+    pub tau_s: f64,
+    pub min_s: f64,
+    pub gyro_dev: f64,
+    pub accel_dev: f64,
+    pub band: f64,
+    pub rate: f64,
+}
+
+#[derive(Clone, Debug)]
+pub struct RestDetector {
+    p: RestParams,
+    started: bool,
+    gyro_lp: [f64; 3],
+    accel_lp: [f64; 3],
+    gyro_var: f64,
+    accel_var: f64,
+    /// Seconds the conditions have held without a break.
+    held: f64,
+}
+
+/// What the detector says after one sample.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RestState {
+    /// At rest (the conditions have held for `min_s`).
+    pub rest: bool,
+    /// Low-passed gyro (same unit as the input).
+    pub gyro_lp: [f64; 3],
+    /// Low-passed specific force, g.
+    pub accel_lp: [f64; 3],
+    /// Mean square deviation of the gyro from its low-pass (input unit squared, summed over axes).
+    pub gyro_var: f64,
+    /// Mean square deviation of the specific force from its low-pass, g^2 (summed over axes).
+    pub accel_var: f64,
+}
+
+impl RestDetector {
+    /// `gyro_dev` and `rate` in the gyro input's unit (rad/s in the estimator).
+    pub fn new(p: RestParams) -> RestDetector {
+        RestDetector { p, started: false, gyro_lp: [0.0; 3], accel_lp: [0.0; 3], gyro_var: 0.0, accel_var: 0.0, held: 0.0 }
+    }
+
+    /// Forget everything (after a resync).
+    pub fn reset(&mut self) {
+        self.started = false;
+        self.held = 0.0;
+    }
+
+    /// Seconds the rest conditions have held.
+    pub fn held(&self) -> f64 {
+        self.held
+    }
+
+    /// One sample: gyro, specific force (g), time step (s), g0 (g), the
+    /// current bias estimate and its largest 1-sigma (gyro unit).
+    pub fn push(&mut self, gyro: &[f64; 3], accel: &[f64; 3], dt: f64, g0: f64, bias: &[f64; 3], bias_sigma: f64) -> RestState {
+        if !self.started {
+            self.gyro_lp = *gyro;
+            self.accel_lp = *accel;
+            self.gyro_var = self.p.gyro_dev * self.p.gyro_dev * 4.0;
+            self.accel_var = self.p.accel_dev * self.p.accel_dev * 4.0;
+            self.started = true;
+            self.held = 0.0;
+        }
+        let a = (dt / self.p.tau_s).min(1.0);
+        let mut dg = 0.0;
+        let mut da = 0.0;
+        for k in 0..3 {
+            self.gyro_lp[k] += (gyro[k] - self.gyro_lp[k]) * a;
+            self.accel_lp[k] += (accel[k] - self.accel_lp[k]) * a;
+            let eg = gyro[k] - self.gyro_lp[k];
+            let ea = accel[k] - self.accel_lp[k];
+            dg += eg * eg;
+            da += ea * ea;
+        }
+        self.gyro_var += (dg - self.gyro_var) * a;
+        self.accel_var += (da - self.accel_var) * a;
+        let amag = (self.accel_lp[0] * self.accel_lp[0] + self.accel_lp[1] * self.accel_lp[1] + self.accel_lp[2] * self.accel_lp[2]).sqrt();
+        let w = [self.gyro_lp[0] - bias[0], self.gyro_lp[1] - bias[1], self.gyro_lp[2] - bias[2]];
+        let rate = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+        let gd = self.p.gyro_dev;
+        let ad = self.p.accel_dev;
+        let quiet = self.gyro_var < gd * gd
+            && self.accel_var < ad * ad
+            && (amag / g0 - 1.0).abs() < self.p.band
+            && rate < self.p.rate + 3.0 * bias_sigma;
+        self.held = if quiet { self.held + dt } else { 0.0 };
+        RestState {
+            rest: self.held >= self.p.min_s,
+            gyro_lp: self.gyro_lp,
+            accel_lp: self.accel_lp,
+            gyro_var: self.gyro_var,
+            accel_var: self.accel_var,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params() -> RestParams {
+        RestParams { tau_s: 0.5, min_s: 1.0, gyro_dev: 0.01, accel_dev: 0.02, band: 0.01, rate: 0.02 }
+    }
+
+    /// Deterministic pseudo-noise in [-1, 1].
+    fn noise(k: u64) -> f64 {
+        let x = (k.wrapping_mul(0x9E3779B97F4A7C15) >> 11) as f64 / (1u64 << 53) as f64;
+        2.0 * x - 1.0
+    }
+
+    #[test]
+    fn rest_with_a_large_bias_and_vibration_is_rest_moving_is_not() {
+        let mut d = RestDetector::new(params());
+        let dt = 0.005;
+        let bias = [0.08, -0.05, 0.07]; // rad/s: about 4.6, 2.9, 4.0 deg/s
+        let mut st = None;
+        for k in 0..400u64 {
+            // idle vibration: 0.005 g and 0.003 rad/s of noise on a level unit
+            let g = [bias[0] + 0.003 * noise(3 * k), bias[1] + 0.003 * noise(3 * k + 1), bias[2] + 0.003 * noise(3 * k + 2)];
+            let a = [0.005 * noise(7 * k), 0.005 * noise(7 * k + 1), -1.0 + 0.005 * noise(7 * k + 2)];
+            // the bias is not known yet: sigma 0.1 rad/s
+            st = Some(d.push(&g, &a, dt, 1.0, &[0.0; 3], 0.1));
+        }
+        assert!(st.unwrap().rest, "a resting unit with a large bias is at rest");
+        // driving: road vibration 0.1 g
+        let mut moving = false;
+        for k in 0..200u64 {
+            let a = [0.1 * noise(5 * k), 0.1 * noise(5 * k + 1), -1.0 + 0.1 * noise(5 * k + 2)];
+            moving |= !d.push(&bias, &a, dt, 1.0, &bias, 0.001).rest;
+        }
+        assert!(moving);
+        assert_eq!(d.held(), 0.0);
+    }
+
+    #[test]
+    fn a_steady_acceleration_or_turn_is_not_rest_once_the_bias_is_known() {
+        let dt = 0.005;
+        // a steady 0.2 g forward acceleration: |f| is 2 % above g0
+        let mut d = RestDetector::new(params());
+        let mut any = false;
+        for _ in 0..600 {
+            any |= d.push(&[0.0; 3], &[0.2, 0.0, -1.0], dt, 1.0, &[0.0; 3], 0.001).rest;
+        }
+        assert!(!any, "a steady 0.2 g acceleration was taken for rest");
+        // a steady 3 deg/s turn with the bias known to 0.001 rad/s
+        let mut d = RestDetector::new(params());
+        let mut any = false;
+        for _ in 0..600 {
+            any |= d.push(&[0.0, 0.0, 0.052], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], 0.001).rest;
+        }
+        assert!(!any, "a steady turn was taken for rest");
+        // the same turn rate as an unknown bias is rest
+        let mut d = RestDetector::new(params());
+        let mut last = false;
+        for _ in 0..600 {
+            last = d.push(&[0.0, 0.0, 0.052], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], 0.1).rest;
+        }
+        assert!(last);
+    }
+
+    #[test]
+    fn needs_min_s_without_a_break() {
+        let mut d = RestDetector::new(params());
+        let dt = 0.01;
+        let mut first = None;
+        for k in 0..300 {
+            let s = d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], 0.0);
+            if s.rest && first.is_none() {
+                first = Some(k);
+            }
+        }
+        // the initial deviation estimate decays first, then 1 s must pass
+        let k = first.expect("rest detected");
+        assert!(k >= 100, "rest after {k} samples, before min_s");
+        // one jolt restarts the clock
+        d.push(&[0.5, 0.0, 0.0], &[0.3, 0.0, -1.0], dt, 1.0, &[0.0; 3], 0.0);
+        assert!(!d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], 0.0).rest);
+    }
+}

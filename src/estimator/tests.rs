@@ -1,0 +1,456 @@
+use super::quat;
+use super::*;
+use crate::adis::Sample;
+
+/// A unit at rest, level, heading `yaw_deg`, with a constant gyro bias.
+fn rest(cnt: u16, bias: [f64; 3], yaw_deg: f64, temp: f64) -> Sample {
+    let psi = yaw_deg * D2R;
+    Sample {
+        cnt,
+        t_us: 0,
+        steps: if cnt == 0 { 0 } else { 1 },
+        gyro: bias,
+        accel: [0.0, 0.0, -1.0],
+        magn: [0.2 * psi.cos(), -0.2 * psi.sin(), 0.4],
+        temp,
+        diag: 0,
+    }
+}
+
+/// These tests pin the paper's behaviour: paper mode unless the text names a mode.
+fn cfg(text: &str) -> Config {
+    let mut c = Config::parse(text, "test").unwrap();
+    if !text.contains("mode =") {
+        c.estimator.mode = Mode::Paper;
+    }
+    c
+}
+
+#[test]
+fn learns_a_constant_bias_at_rest() {
+    for (mode, secs) in [("paper", 40.0), ("mekf", 40.0)] {
+        let c = cfg(&format!("[estimator]\nmode = \"{mode}\"\nwarmup_s = 2.0\nlearn_s = 20.0"));
+        let mut e = Estimator::new(&c);
+        let bias = [0.3, -0.2, 0.45];
+        let mut last = Estimate::default();
+        for k in 0..(204.8 * secs) as u32 {
+            last = e.step(&rest(k as u16, bias, 30.0, 25.0));
+        }
+        for i in 0..3 {
+            assert!((last.bias[i] - bias[i]).abs() < 0.01, "axis {i}: {:?}", last.bias);
+            assert!(last.rate[i].abs() < 0.01);
+        }
+        assert!(last.roll.abs() < 0.05 && last.pitch.abs() < 0.05);
+        assert!((last.yaw - 30.0).abs() < 0.2, "yaw {}", last.yaw);
+        assert_eq!(last.mode, 0);
+        assert_eq!(last.flags & (flags::WARMUP | flags::LEARNING), 0);
+    }
+}
+
+#[test]
+fn warmup_samples_do_not_teach_the_bias() {
+    let c = cfg("[estimator]\nwarmup_s = 5.0\nlearn_s = 5.0");
+    let mut e = Estimator::new(&c);
+    let mut est = Estimate::default();
+    for k in 0..(204.8 * 4.5) as u32 {
+        est = e.step(&rest(k as u16, [0.5, 0.5, 0.5], 0.0, 25.0));
+        assert!(est.flags & flags::WARMUP != 0);
+    }
+    assert_eq!(est.bias, [0.0; 3]);
+}
+
+#[test]
+fn thermal_curve_is_anchored_at_the_last_ekf_bias() {
+    // Learn at 25 C, then go out of band (|a| = 1.5 g) and warm by 10 C:
+    // the bias must be the learned one plus p1 * 10, not p1 (T - t0) + p2.
+    let c = cfg("[estimator]\nmode = \"paper\"\nwarmup_s = 1.0\nlearn_s = 10.0\n[thermal]\nt0 = 0.0\np1 = [0.002, 0.0044, 0.0192]\np2 = [1.0, 1.0, 1.0]");
+    let mut e = Estimator::new(&c);
+    let b0 = [0.1, -0.1, 0.2];
+    let n = (204.8 * 90.0) as u32;
+    let mut cnt = 0u16;
+    for _ in 0..n {
+        e.step(&rest(cnt, b0, 0.0, 25.0));
+        cnt = cnt.wrapping_add(1);
+    }
+    let held = e.learned().unwrap();
+    for i in 0..3 {
+        assert!((held.bias[i] - b0[i]).abs() < 0.01, "{:?}", held);
+    }
+    let mut est = Estimate::default();
+    for k in 0..1000 {
+        let mut s = rest(cnt, b0, 0.0, 25.0 + 10.0 * k as f64 / 999.0);
+        s.accel = [0.0, 0.0, -1.5];
+        est = e.step(&s);
+        cnt = cnt.wrapping_add(1);
+        assert_eq!(est.mode, 2);
+    }
+    let p1 = [0.002, 0.0044, 0.0192];
+    for i in 0..3 {
+        let want = held.bias[i] + p1[i] * (35.0 - held.temp);
+        assert!((est.bias[i] - want).abs() < 1e-9, "axis {i}: {} vs {want}", est.bias[i]);
+    }
+}
+
+#[test]
+fn startup_average_ignores_thermal_and_fusion() {
+    let c = cfg("[estimator]\nmode = \"startup_average\"\nwarmup_s = 1.0\nlearn_s = 5.0\n[thermal]\np1 = [0.1, 0.1, 0.1]");
+    let mut e = Estimator::new(&c);
+    let mut est = Estimate::default();
+    for k in 0..(204.8 * 10.0) as u32 {
+        est = e.step(&rest(k as u16, [0.2, 0.0, -0.3], 0.0, 25.0 + k as f64 * 0.001));
+        assert_eq!(est.mode, 2);
+    }
+    assert!((est.bias[0] - 0.2).abs() < 1e-9 && (est.bias[2] + 0.3).abs() < 1e-9);
+}
+
+#[test]
+fn suspect_and_out_of_band_samples_are_not_fused() {
+    let c = cfg("[estimator]\nmode = \"paper\"\ng0_window_s = 0.001");
+    let mut e = Estimator::new(&c);
+    e.step(&rest(0, [0.0; 3], 0.0, 25.0));
+    let mut s = rest(1, [0.0; 3], 0.0, 25.0);
+    s.diag = 4;
+    let est = e.step(&s);
+    assert_eq!(est.mode, 2);
+    assert!(est.flags & flags::SUSPECT != 0);
+    let mut s = rest(2, [0.0; 3], 0.0, 25.0);
+    s.accel = [0.0, 0.0, -1.1];
+    assert_eq!(e.step(&s).mode, 1);
+    s.accel = [0.0, 0.0, -1.25];
+    s.cnt = 3;
+    assert_eq!(e.step(&s).mode, 2);
+}
+
+#[test]
+fn thermal_curve_clamps_outside_the_calibrated_range_and_flags_it() {
+    let c = cfg("[estimator]\nwarmup_s = 1.0\nlearn_s = 5.0\n[thermal]\nt0 = 25.0\norder = 2\np1 = [0.01, 0.01, 0.01]\np3 = [0.001, 0.0, 0.0]\nt_min = 10.0\nt_max = 40.0");
+    let mut e = Estimator::new(&c);
+    let mut cnt = 0u16;
+    for _ in 0..(204.8 * 10.0) as u32 {
+        let est = e.step(&rest(cnt, [0.0; 3], 0.0, 30.0));
+        assert_eq!(est.flags & flags::THERMAL_CLAMP, 0);
+        cnt = cnt.wrapping_add(1);
+    }
+    let held = e.learned().unwrap().bias;
+    // out of band, warming from 30 to 50 C: the curve moves the bias up to 40 C only
+    let mut est = Estimate::default();
+    for k in 0..1000 {
+        let temp = 30.0 + 20.0 * k as f64 / 999.0;
+        let mut s = rest(cnt, [0.0; 3], 0.0, temp);
+        s.accel = [0.0, 0.0, -1.5];
+        est = e.step(&s);
+        cnt = cnt.wrapping_add(1);
+        assert_eq!(est.flags & flags::THERMAL_CLAMP != 0, temp > 40.0, "at {temp}");
+    }
+    let f = |t: f64| 0.01 * (t - 25.0) + 0.001 * (t - 25.0) * (t - 25.0);
+    assert!((est.bias[0] - (held[0] + f(40.0) - f(30.0))).abs() < 1e-9, "{:?}", est.bias);
+    assert!((est.bias[1] - (held[1] + 0.1)).abs() < 1e-9);
+    // startup_average does not use the curve, so it never clamps
+    let c = cfg("[estimator]\nmode = \"startup_average\"\n[thermal]\nt_max = 20.0");
+    let mut e = Estimator::new(&c);
+    assert_eq!(e.step(&rest(0, [0.0; 3], 0.0, 30.0)).flags & flags::THERMAL_CLAMP, 0);
+}
+
+#[test]
+fn long_gap_is_a_resync_not_an_integration() {
+    let c = cfg("");
+    let mut e = Estimator::new(&c);
+    for k in 0..100u16 {
+        e.step(&rest(k, [0.0; 3], 0.0, 25.0));
+    }
+    let mut s = rest(1100, [0.0; 3], 0.0, 25.0);
+    s.gyro = [50.0, 0.0, 0.0];
+    s.steps = 1000;
+    let est = e.step(&s);
+    assert!(est.flags & flags::RESYNC != 0);
+    // integrated over one period, not 4.9 s
+    assert!(est.roll.abs() < 1.0, "roll {}", est.roll);
+}
+
+// ---- the default filter (mekf) ----
+
+/// Samples of a motion given per step: body rates (deg/s, true), specific
+/// force (g, body) and the magnetic field in NED, with a constant gyro bias.
+struct Motion {
+    q: quat::Quat,
+    k: u32,
+    rate: f64,
+    bias: [f64; 3],
+    field: [f64; 3],
+}
+
+impl Motion {
+    fn new(rate: f64, bias: [f64; 3], roll: f64, pitch: f64, yaw: f64) -> Motion {
+        Motion { q: quat::from_euler(roll * D2R, pitch * D2R, yaw * D2R), k: 0, rate, bias, field: [0.2, 0.0, 0.4] }
+    }
+    /// One sample: rotate by `w` (deg/s, body) over the step; `a_nav` the
+    /// navigation-frame acceleration, g.
+    fn step(&mut self, w: [f64; 3], a_nav: [f64; 3]) -> Sample {
+        let dt = 1.0 / self.rate;
+        if self.k > 0 {
+            self.q = quat::mul(&self.q, &quat::from_rotvec(&[w[0] * D2R * dt, w[1] * D2R * dt, w[2] * D2R * dt]));
+            quat::normalise(&mut self.q);
+        }
+        let c = quat::to_matrix(&self.q);
+        let f = quat::rotate_t(&c, &[a_nav[0], a_nav[1], a_nav[2] - 1.0]);
+        let m = quat::rotate_t(&c, &self.field);
+        let s = Sample {
+            cnt: self.k as u16,
+            t_us: 0,
+            steps: if self.k == 0 { 0 } else { 1 },
+            gyro: [w[0] + self.bias[0], w[1] + self.bias[1], w[2] + self.bias[2]],
+            accel: f,
+            magn: m,
+            temp: 25.0,
+            diag: 0,
+        };
+        self.k += 1;
+        s
+    }
+    fn euler(&self) -> [f64; 3] {
+        quat::euler(&quat::to_matrix(&self.q)).map(|v| v * R2D)
+    }
+}
+
+fn mekf(extra: &str) -> Estimator {
+    Estimator::new(&Config::parse(&format!("[estimator]\nmode = \"mekf\"\n{extra}"), "test").unwrap())
+}
+
+fn angle_err(a: f64, b: f64) -> f64 {
+    crate::ekf::wrap_pi((a - b) * D2R).abs() * R2D
+}
+
+#[test]
+fn mekf_learns_a_turn_on_bias_of_several_deg_per_s_at_the_first_rest() {
+    // A real ADIS16448 was measured at 4.5 deg/s; the prior sigma is 3 deg/s.
+    let bias = [4.5, -3.0, 2.5];
+    let mut m = Motion::new(204.8, bias, 2.0, -1.0, 40.0);
+    let mut e = mekf("");
+    let mut est = Estimate::default();
+    let mut learning_seen = false;
+    for _ in 0..(204.8 * 8.0) as u32 {
+        est = e.step(&m.step([0.0; 3], [0.0; 3]));
+        learning_seen |= est.flags & flags::LEARNING != 0;
+    }
+    assert!(learning_seen, "the unknown bias was not flagged as being learned");
+    for i in 0..3 {
+        assert!((est.bias[i] - bias[i]).abs() < 0.02, "axis {i}: {:?}", est.bias);
+    }
+    assert!(est.flags & flags::STANDSTILL != 0 && est.mode == 0, "flags {:#x} mode {}", est.flags, est.mode);
+    assert_eq!(est.flags & flags::LEARNING, 0);
+    let t = m.euler();
+    assert!(angle_err(est.roll, t[0]) < 0.1 && angle_err(est.pitch, t[1]) < 0.1, "{est:?} vs {t:?}");
+}
+
+#[test]
+fn mekf_holds_any_orientation_through_vertical_and_upside_down() {
+    let bias = [0.3, -0.2, 0.1];
+    let mut m = Motion::new(204.8, bias, 0.0, 0.0, 0.0);
+    let mut e = mekf("");
+    let mut worst: f64 = 0.0;
+    let check = |e: &Estimate, m: &Motion, worst: &mut f64| {
+        // compare rotation matrices: the angle between estimated and true attitude
+        let a = quat::matrix_from_euler(e.roll * D2R, e.pitch * D2R, e.yaw * D2R);
+        let b = quat::to_matrix(&m.q);
+        let mut tr = 0.0;
+        for i in 0..3 {
+            for j in 0..3 {
+                tr += a[i][j] * b[i][j];
+            }
+        }
+        let ang = ((tr - 1.0) / 2.0).clamp(-1.0, 1.0).acos() * R2D;
+        *worst = worst.max(ang);
+    };
+    // rest, then pitch up through vertical to 120 deg, roll upside down, and back
+    let phases: [([f64; 3], f64); 7] = [
+        ([0.0; 3], 10.0),
+        ([0.0, 30.0, 0.0], 4.0),
+        ([0.0; 3], 5.0),
+        ([60.0, 0.0, 0.0], 3.0),
+        ([0.0; 3], 5.0),
+        ([-60.0, 0.0, 0.0], 3.0),
+        ([0.0, -30.0, 0.0], 4.0),
+    ];
+    let mut est = Estimate::default();
+    for (w, secs) in phases {
+        for _ in 0..(204.8 * secs) as u32 {
+            est = e.step(&m.step(w, [0.0; 3]));
+            if m.k > 2048 {
+                check(&est, &m, &mut worst);
+            }
+        }
+    }
+    for _ in 0..(204.8 * 5.0) as u32 {
+        est = e.step(&m.step([0.0; 3], [0.0; 3]));
+        check(&est, &m, &mut worst);
+    }
+    assert!(worst < 1.0, "attitude error reached {worst} deg");
+    let t = m.euler();
+    assert!(angle_err(est.roll, t[0]) < 0.2 && angle_err(est.pitch, t[1]) < 0.2, "{est:?} vs {t:?}");
+}
+
+#[test]
+fn mekf_does_not_read_a_sustained_acceleration_as_tilt() {
+    // Parked 10 s (the bias is learned), then a car pulls away at a steady
+    // 0.15 g for 12 s: |a| = 1.011 g stays inside the 1.5 % band, the
+    // accelerometer alone says 8.5 deg of pitch.
+    let bias = [0.3, -0.4, 0.2];
+    let mut m = Motion::new(204.8, bias, 0.0, 0.0, 0.0);
+    let mut e = mekf("");
+    let mut worst: f64 = 0.0;
+    for k in 0..(204.8 * 30.0) as u32 {
+        let t = k as f64 / 204.8;
+        let a = if (10.0..22.0).contains(&t) { 0.15 } else { 0.0 };
+        let est = e.step(&m.step([0.0; 3], [a, 0.0, 0.0]));
+        if t > 10.0 {
+            worst = worst.max(est.pitch.abs()).max(est.roll.abs());
+        }
+    }
+    assert!(worst < 0.3, "tilt error {worst} deg during a sustained acceleration");
+    let v = e.mekf().unwrap().forward_speed();
+    assert!((v - 0.15 * 9.80665 * 12.0).abs() < 0.5, "speed {v}");
+    let b = e.learned().unwrap().bias;
+    for i in 0..3 {
+        assert!((b[i] - bias[i]).abs() < 0.02, "{b:?}");
+    }
+}
+
+#[test]
+fn mekf_a_turn_at_speed_is_not_roll() {
+    // 15 m/s, then a 20 deg/s turn for 8 s (0.53 g centripetal), level road.
+    let bias = [0.2, 0.1, -0.3];
+    let mut m = Motion::new(204.8, bias, 0.0, 0.0, 0.0);
+    let mut e = mekf("");
+    let g = 9.80665;
+    let mut worst: f64 = 0.0;
+    let mut v = 0.0;
+    for k in 0..(204.8 * 40.0) as u32 {
+        let t = k as f64 / 204.8;
+        let acc = if (10.0..15.0).contains(&t) { 3.0 } else { 0.0 };
+        v += acc / 204.8;
+        let r = if (20.0..28.0).contains(&t) { 20.0 } else { 0.0 };
+        // the acceleration in NED: forward along the heading, centripetal across it
+        let yaw = m.euler()[2] * D2R;
+        let (sy, cy) = yaw.sin_cos();
+        let lat = v * r * D2R;
+        let a = [(acc * cy - lat * sy) / g, (acc * sy + lat * cy) / g, 0.0];
+        let est = e.step(&m.step([0.0, 0.0, r], a));
+        if t > 10.0 {
+            worst = worst.max(est.roll.abs()).max(est.pitch.abs());
+        }
+    }
+    assert!(worst < 0.5, "tilt error {worst} deg in a turn at speed");
+    assert!(e.mekf().unwrap().vehicle());
+}
+
+#[test]
+fn mekf_relevels_when_a_standstill_disagrees_for_long() {
+    // After learning, the accelerometer reports a 6 deg tilt the gyro never
+    // saw (the unit re-mounted while off the bus): refused at first, then a
+    // flagged re-level, never a silent lock-out.
+    let mut m = Motion::new(204.8, [0.1, -0.1, 0.2], 0.0, 0.0, 0.0);
+    let mut e = mekf("");
+    let th = 6f64.to_radians();
+    let mut est = Estimate::default();
+    let mut relevel_at = None;
+    for k in 0..(204.8 * 40.0) as u32 {
+        let t = k as f64 / 204.8;
+        let mut s = m.step([0.0; 3], [0.0; 3]);
+        if t >= 20.0 {
+            s.accel = [th.sin(), 0.0, -th.cos()];
+        }
+        est = e.step(&s);
+        if est.flags & flags::RELEVEL != 0 && relevel_at.is_none() {
+            relevel_at = Some(t);
+        }
+    }
+    let t = relevel_at.expect("no re-level flagged");
+    assert!(t > 20.0 && t < 25.0, "re-levelled at {t}");
+    assert!((est.pitch - 6.0).abs() < 0.2, "pitch {}", est.pitch);
+    assert_eq!(e.mekf_counters().unwrap().relevels, 1);
+}
+
+#[test]
+fn mekf_outputs_are_in_the_vehicle_frame_of_a_rotated_mounting() {
+    // The same level, parked vehicle seen by a sensor mounted upside down
+    // and turned 90 deg: with [mounting] the outputs are level.
+    let mount = [180.0, 0.0, 90.0];
+    let r = quat::matrix_from_euler(mount[0] * D2R, mount[1] * D2R, mount[2] * D2R);
+    let bias_sensor = [0.5, -0.3, 0.2];
+    let mut e = mekf(&format!("[mounting]\nrotation = [{}, {}, {}]", mount[0], mount[1], mount[2]));
+    let mut est = Estimate::default();
+    for k in 0..(204.8 * 10.0) as u32 {
+        // vehicle-frame quantities, seen in the sensor frame: v_s = R^T v_v
+        let g_s = quat::rotate_t(&r, &[0.0, 0.0, -1.0]);
+        let m_s = quat::rotate_t(&r, &[0.2, 0.0, 0.4]);
+        let s = Sample {
+            cnt: k as u16,
+            t_us: 0,
+            steps: if k == 0 { 0 } else { 1 },
+            gyro: bias_sensor,
+            accel: g_s,
+            magn: m_s,
+            temp: 25.0,
+            diag: 0,
+        };
+        est = e.step(&s);
+    }
+    assert!(est.roll.abs() < 0.1 && est.pitch.abs() < 0.1 && est.yaw.abs() < 0.5, "{est:?}");
+    // the bias is reported in the vehicle frame
+    let bv = quat::rotate(&r, &bias_sensor);
+    for i in 0..3 {
+        assert!((est.bias[i] - bv[i]).abs() < 0.01, "{:?} vs {bv:?}", est.bias);
+    }
+}
+
+#[test]
+fn mekf_magnetometer_auto_off_when_absent_and_disturbance_is_flagged() {
+    // no field at all: off, yaw free, no disturbance flag
+    let mut e = mekf("");
+    let mut m = Motion::new(204.8, [0.0; 3], 0.0, 0.0, 30.0);
+    m.field = [0.0; 3];
+    for _ in 0..(204.8 * 3.0) as u32 {
+        let est = e.step(&m.step([0.0; 3], [0.0; 3]));
+        assert_eq!(est.flags & flags::MAG_DISTURBED, 0);
+    }
+    assert_eq!(e.magnetometer(), Some(false));
+    // a plausible field: on; a magnet brought close: flagged and not fused
+    let mut e = mekf("");
+    let mut m = Motion::new(204.8, [0.0; 3], 0.0, 0.0, 30.0);
+    let mut flagged = false;
+    let mut yaw_before = 0.0;
+    let mut est = Estimate::default();
+    for k in 0..(204.8 * 20.0) as u32 {
+        let t = k as f64 / 204.8;
+        let mut s = m.step([0.0; 3], [0.0; 3]);
+        if t >= 10.0 {
+            s.magn = [s.magn[0] + 0.3, s.magn[1] - 0.2, s.magn[2]];
+        } else {
+            yaw_before = e.step(&s).yaw;
+            continue;
+        }
+        est = e.step(&s);
+        flagged |= est.flags & flags::MAG_DISTURBED != 0;
+    }
+    assert_eq!(e.magnetometer(), Some(true));
+    assert!((yaw_before - 30.0).abs() < 0.5, "yaw {yaw_before}");
+    assert!(flagged);
+    assert!((est.yaw - yaw_before).abs() < 0.5, "the disturbed field turned yaw from {yaw_before} to {}", est.yaw);
+}
+
+#[test]
+fn thermal_disabled_for_a_part_without_temperature() {
+    // a slope that would move the bias by 1 deg/s over the temperature swing
+    let c = "[thermal]\nenabled = false\np1 = [0.05, 0.05, 0.05]";
+    for mode in ["paper", "mekf"] {
+        let mut e = Estimator::new(&Config::parse(&format!("[estimator]\nmode = \"{mode}\"\n{c}"), "t").unwrap());
+        let mut est = Estimate::default();
+        for k in 0..2000u32 {
+            let mut s = rest(k as u16, [0.0; 3], 0.0, 25.0 + k as f64 * 0.01);
+            s.accel = [0.0, 0.0, -1.5]; // out of band: no learning in paper mode
+            est = e.step(&s);
+        }
+        assert!(est.bias.iter().all(|b| b.abs() < 1e-9), "{mode}: {:?}", est.bias);
+        assert_eq!(est.flags & flags::THERMAL_CLAMP, 0);
+    }
+}
