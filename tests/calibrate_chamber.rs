@@ -223,21 +223,22 @@ fn coverage(n: u64, verbose: bool) -> ([usize; 3], [f64; 3], [usize; 3]) {
     (inside, sq.map(|v| (v / n as f64).sqrt()), within5)
 }
 
-/// With the bias random walk the issue describes, ordinary least squares put
-/// every fitted slope outside its interval; these intervals must hold >= 90 %.
+/// The issue's target: with the bias random walk, the old ordinary least
+/// squares put most fitted slopes outside their intervals; over 100
+/// independent 4-run calibrations these 95 % intervals must hold the true
+/// slope at least 90 times on every axis.
 #[test]
 fn intervals_hold_their_coverage_under_a_bias_random_walk() {
-    let n = 40;
+    let n = 100;
     let (inside, rms, _) = coverage(n, false);
     eprintln!("inside {inside:?} of {n}, rms relative error {rms:?}");
-    let total: usize = inside.iter().sum();
-    assert!(total as f64 >= 0.9 * 3.0 * n as f64, "{total} of {} intervals hold the truth", 3 * n);
     for i in 0..3 {
-        assert!(inside[i] as f64 >= 0.85 * n as f64, "axis {i}: {} of {n}", inside[i]);
+        assert!(inside[i] >= 90, "axis {i}: {} of {n}", inside[i]);
     }
 }
 
-/// The issue's target, reported: `cargo test --release --test calibrate_chamber -- --ignored --nocapture coverage_over_100`
+/// The same 100 calibrations, every one printed (p1 per axis, interval, error):
+/// `cargo test --release --test calibrate_chamber -- --ignored --nocapture coverage_over_100`
 /// (`GYROCOMP_WALK=0.0005` for another walk).
 #[test]
 #[ignore]
