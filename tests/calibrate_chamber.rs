@@ -342,6 +342,16 @@ fn a_large_slow_transient_is_not_separable_and_the_run_is_left_out() {
         let a = &cal.axes[i];
         assert!((a.coeffs[0] - P1[i]).abs() <= a.ci[0], "axis {i}: {} +- {} vs {}", a.coeffs[0], a.ci[0], P1[i]);
     }
+    // the plots still show the run left out (grey), with finite coordinates
+    let dir = tempfile::tempdir().unwrap();
+    let files = cal.plot(dir.path()).unwrap();
+    assert_eq!(files.len(), 7);
+    for f in &files {
+        let svg = std::fs::read_to_string(f).unwrap();
+        assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>") && !svg.contains("NaN"), "{}", f.display());
+    }
+    let run3 = std::fs::read_to_string(dir.path().join("warmup_run3.svg")).unwrap();
+    assert!(run3.contains("<polyline"), "run 3's residual is drawn");
 }
 
 /// A single run whose transient is slower than its limit (tau_heat / 3):
