@@ -142,16 +142,5 @@ fn cmd_calibrate(
     plot: Option<PathBuf>,
 ) -> Result<(), String> {
     let cfg = load_config(&config)?;
-    let cal = gyrocomp::calibrate::calibrate_files(&cfg, &input, order).map_err(|e| e.to_string())?;
-    print!("{}", cal.render());
-    if let Some(p) = write {
-        cal.write_toml(&p).map_err(|e| e.to_string())?;
-        println!("wrote {}", p.display());
-    }
-    if let Some(d) = plot {
-        for p in cal.plot(&d).map_err(|e| e.to_string())? {
-            println!("wrote {}", p.display());
-        }
-    }
-    Ok(())
+    gyrocomp::calibrate::cli(&cfg, &input, order, write.as_deref(), plot.as_deref())
 }

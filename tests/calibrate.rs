@@ -292,6 +292,23 @@ fn command_line_writes_config_and_svg_plots() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("bad.log") && err.contains("corrupt"), "{err}");
     assert!(!out2.exists());
+    // an output that is one of the inputs is refused before anything is written
+    let before = std::fs::read(&files[1]).unwrap();
+    let o = std::process::Command::new(exe)
+        .args(["calibrate", "--config"])
+        .arg(&cfg_path)
+        .arg("--input")
+        .args(&files)
+        .arg("--write")
+        .arg(&files[1])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("refusing to overwrite an input"), "{err}");
+    assert_eq!(std::fs::read(&files[1]).unwrap(), before);
+    // no temporary file is left beside the outputs
+    assert!(std::fs::read_dir(dir.path()).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().contains(".tmp-")));
     // order out of range is refused by the parser
     let o = std::process::Command::new(exe).args(["calibrate", "--order", "4", "--input"]).arg(&files[0]).output().unwrap();
     assert!(!o.status.success());
