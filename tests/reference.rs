@@ -163,6 +163,17 @@ fn gaps_are_not_scored_and_without_rest_the_first_seconds_align() {
     let a = &ev_full.alignment;
     assert!(a.window.source.starts_with("first 3 s") && a.window.t1 == 3.0, "{a:?}");
     assert!((a.roll_deg - MOUNT[0]).abs() < 0.05 && (a.pitch_deg - MOUNT[1]).abs() < 0.05, "mount from the first 3 s: {a:?}");
+    // A reference on another clock: --offset is the reference time of the first sample.
+    let shifted = d.path().join("shifted.csv");
+    write_ref(&shifted, &rows.iter().map(|(t, a)| (t + 1000.0, *a)).collect::<Vec<_>>(), false, &|_| false, "");
+    let r = read_reference(&shifted).unwrap();
+    let o = RefOptions { skip: 10.0, align_s: 3.0, offset: 1000.0, peers: true };
+    let ev_shift = evaluate_samples(&samples, &cfg, &r, &o).unwrap();
+    for (x, y) in ev_shift.results.iter().zip(&ev_full.results) {
+        let (a, b) = (&x.scores, &y.scores);
+        assert!((a.roll.rms - b.roll.rms).abs() < 1e-6 && (a.pitch.max - b.pitch.max).abs() < 1e-6, "{}: {a:?} vs {b:?}", x.name);
+        assert_eq!(a.no_reference_s, 0.0);
+    }
     let s_cut = eval(&cfg, &samples, &cut, 3.0);
     for p in [&wild, &empty] {
         let ev = eval(&cfg, &samples, p, 3.0);

@@ -14,6 +14,13 @@
 //! attitude of the reference body it implies). Yaw has an arbitrary origin
 //! in the reference: each estimator's own yaw offset is its mean yaw error
 //! over the last second of that window, removed before yaw is scored.
+//! A window where any gyro axis varies by more than 1 deg/s or any
+//! accelerometer axis by more than 0.02 g (standard deviation) does not look
+//! like rest: the mount is still estimated there (the rule), but flagged,
+//! since it then also holds whatever acceleration the unit had. `--align-s
+//! 0` with a reference without a rest phase estimates no mount at all (for a
+//! reference computed in the sensor's own frame); the yaw offset is then
+//! taken over the first second with a reference.
 //!
 //! **Scores** (from `skip` on, where the reference is valid and no gap):
 //! roll and pitch error (max, RMS), tilt (inclination) error — the angle
@@ -371,7 +378,7 @@ mod tests {
         // holds the sensor's true attitude then scores zero.
         let s = level(500, [2.0, -1.0]);
         let ts = sample_times(&s, 0.01);
-        let rows: Vec<RefRow> = ts.iter().map(|&t| RefRow { t, att: Some([0.0, 0.0, 17.0]), rest: t < 3.0 }).collect();
+        let rows: Vec<RefRow> = ts.iter().map(|&t| RefRow { t, att: Some([0.0, 0.0, 17.0]), rest: t < 2.995 }).collect();
         let r = Reference { rows, has_rest: true, has_valid: true };
         let w = alignment_window(&r, 5.0, 0.0).unwrap();
         assert_eq!((w.t0, w.source.as_str()), (0.0, "first rest phase"));
