@@ -612,11 +612,18 @@ pub struct EvaluateArgs {
     #[arg(long, default_value_t = 0.05)]
     pub thermal_error: f64,
     /// Score from this time on, s.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, visible_alias = "skip")]
     pub score_from: f64,
+    /// Real data: --reference, --realdata, --peers, --offset, --align-s (`gyrocomp::reference`).
+    #[command(flatten)]
+    pub real: crate::reference::ReferenceArgs,
 }
 
 pub fn run(a: &EvaluateArgs) -> Result<(), String> {
+    if let Some(text) = crate::reference::dispatch(a.config.as_deref(), a.input.as_deref(), a.out.as_deref(), a.score_from, &a.real)? {
+        print!("{text}");
+        return Ok(());
+    }
     let cfg = match &a.config {
         Some(p) => Config::load(p).map_err(|e| e.to_string())?,
         None => Config::default(),

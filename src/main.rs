@@ -67,6 +67,10 @@ enum Cmd {
     /// Writes DIR/report.json, report.md, model.toml (the extended model) and
     /// SVG plots. Significance rule and details: the `gyrocomp::gap` module documentation.
     Gap(gyrocomp::gap::GapArgs),
+    /// Convert a CSV recording (t,gx,gy,gz,ax,ay,az[,mx,my,mz][,temp]) into an ADIS candump log.
+    ///
+    /// Scales, counter and the config snippet: the `gyrocomp::import` module documentation.
+    Import(gyrocomp::import::ImportArgs),
 }
 
 fn load_config(p: &Option<PathBuf>) -> Result<Config, String> {
@@ -89,6 +93,7 @@ fn main() -> ExitCode {
         Cmd::Simulate(a) => gyrocomp::sim::cli::run(&a),
         Cmd::Evaluate(a) => gyrocomp::evaluate::run(&a),
         Cmd::Gap(a) => gyrocomp::gap::cli(&a),
+        Cmd::Import(a) => gyrocomp::import::run(&a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

@@ -15,4 +15,5 @@ echo "[run-all] preparing the vcan / systemd test harness"
 bash tests/vm/prepare.sh
 
 cargo build --release --all-targets
+cargo test --release --test realdata -- --nocapture  # prints the real-data table, or "skipped: ../shared/realdata not found"
 cargo test --release -- --test-threads=2

@@ -1,0 +1,327 @@
+//! Reading an IMU recording as CSV: `t,gx,gy,gz,ax,ay,az,mx,my,mz,temp`.
+//!
+//! Columns are found by name in the header (any order; unknown columns are
+//! ignored and listed). `t` (s), `gx..gz` (deg/s) and `ax..az` (g, specific
+//! force) are required; `mx,my,mz` (gauss, all three or none) and `temp`
+//! (deg C) may be absent, or present with every value empty. A value is a
+//! finite number; anything else is an error naming the line and the column.
+//! Gzip input (`.gz`) is recognised by its magic bytes, whatever the name.
+
+use std::fs::File;
+use std::io::{BufRead, BufReader, Read};
+use std::path::Path;
+
+/// The columns this reader knows, in the contract's order.
+pub const COLUMNS: [&str; 11] = ["t", "gx", "gy", "gz", "ax", "ay", "az", "mx", "my", "mz", "temp"];
+/// The first seven are required.
+const REQUIRED: usize = 7;
+
+/// Open a text file, transparently gunzipping it when it starts with the gzip magic.
+pub fn open_text(path: &Path) -> Result<Box<dyn BufRead>, String> {
+    let mut f = File::open(path).map_err(|e| format!("cannot open {}: {e}", path.display()))?;
+    let mut magic = [0u8; 2];
+    let n = read_up_to(&mut f, &mut magic).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let f = File::open(path).map_err(|e| format!("cannot open {}: {e}", path.display()))?;
+    if n == 2 && magic == [0x1f, 0x8b] {
+        Ok(Box::new(BufReader::with_capacity(1 << 16, flate2::read::MultiGzDecoder::new(BufReader::new(f)))))
+    } else {
+        Ok(Box::new(BufReader::with_capacity(1 << 16, f)))
+    }
+}
+
+fn read_up_to(f: &mut File, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match f.read(&mut buf[n..])? {
+            0 => break,
+            k => n += k,
+        }
+    }
+    Ok(n)
+}
+
+/// A body-axis mapping onto FRD: `x,-y,-z` means FRD x = source x,
+/// FRD y = -source y, FRD z = -source z (the FLU -> FRD map).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AxesMap {
+    /// Source axis index for each FRD axis.
+    pub src: [usize; 3],
+    /// Sign for each FRD axis.
+    pub sign: [f64; 3],
+}
+
+impl AxesMap {
+    pub const IDENTITY: AxesMap = AxesMap { src: [0, 1, 2], sign: [1.0; 3] };
+
+    /// Parse `x,-y,-z` (three entries, each an optionally signed x, y or z,
+    /// every source axis used once).
+    pub fn parse(s: &str) -> Result<AxesMap, String> {
+        let bad = |why: &str| format!("--axes {s:?}: {why} (want three of x, y, z with optional signs, e.g. x,-y,-z)");
+        let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+        if parts.len() != 3 {
+            return Err(bad("not three entries"));
+        }
+        let mut m = AxesMap::IDENTITY;
+        let mut used = [false; 3];
+        for (i, p) in parts.iter().enumerate() {
+            let (sign, axis) = match p.as_bytes() {
+                [b'-', a] => (-1.0, *a),
+                [b'+', a] | [a] => (1.0, *a),
+                _ => return Err(bad(&format!("entry {p:?}"))),
+            };
+            let k = match axis.to_ascii_lowercase() {
+                b'x' => 0,
+                b'y' => 1,
+                b'z' => 2,
+                _ => return Err(bad(&format!("entry {p:?}"))),
+            };
+            if used[k] {
+                return Err(bad(&format!("axis {} used twice", axis as char)));
+            }
+            used[k] = true;
+            m.src[i] = k;
+            m.sign[i] = sign;
+        }
+        Ok(m)
+    }
+
+    /// Map a source vector onto FRD.
+    pub fn apply(&self, v: [f64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|i| self.sign[i] * v[self.src[i]])
+    }
+
+    /// A proper rotation (determinant +1)? A reflection would turn a
+    /// right-handed frame into a left-handed one.
+    pub fn is_rotation(&self) -> bool {
+        // sign of the permutation times the product of the signs
+        let p = self.src;
+        let inversions = (p[0] > p[1]) as u8 + (p[0] > p[2]) as u8 + (p[1] > p[2]) as u8;
+        let perm = if inversions.is_multiple_of(2) { 1.0 } else { -1.0 };
+        perm * self.sign[0] * self.sign[1] * self.sign[2] > 0.0
+    }
+}
+
+/// An IMU recording in FRD, physical units.
+#[derive(Clone, Debug, Default)]
+pub struct ImuCsv {
+    /// Line number of every sample (1-based, the header is line 1).
+    pub line: Vec<u64>,
+    pub t: Vec<f64>,
+    pub gyro: Vec<[f64; 3]>,
+    pub accel: Vec<[f64; 3]>,
+    /// None when the recording has no magnetometer.
+    pub magn: Option<Vec<[f64; 3]>>,
+    /// None when the recording has no temperature.
+    pub temp: Option<Vec<f64>>,
+    /// Header columns this reader does not know (ignored).
+    pub ignored: Vec<String>,
+}
+
+impl ImuCsv {
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+}
+
+/// Parse one field: empty -> None, a finite number -> Some, else an error.
+fn field(s: &str, name: &str, path: &str, no: u64) -> Result<Option<f64>, String> {
+    let s = s.trim();
+    if s.is_empty() {
+        return Ok(None);
+    }
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(Some(v)),
+        Ok(v) => Err(format!("{path} line {no}, column {name}: {v} is not a finite number")),
+        Err(_) => Err(format!("{path} line {no}, column {name}: not a number: {s:?}")),
+    }
+}
+
+/// Read the recording, mapping the axes onto FRD.
+pub fn read_imu_csv(path: &Path, axes: &AxesMap) -> Result<ImuCsv, String> {
+    let p = path.display().to_string();
+    let mut rd = open_text(path)?;
+    let mut buf = String::new();
+    let mut no: u64 = 0;
+    let mut next_line = |buf: &mut String, no: &mut u64| -> Result<bool, String> {
+        buf.clear();
+        let n = rd.read_line(buf).map_err(|e| format!("{p} line {}: {e}", *no + 1))?;
+        *no += 1;
+        while buf.ends_with('\n') || buf.ends_with('\r') {
+            buf.pop();
+        }
+        Ok(n > 0)
+    };
+    if !next_line(&mut buf, &mut no)? {
+        return Err(format!("{p}: empty file (want a header line {})", COLUMNS.join(",")));
+    }
+    let header: Vec<String> = buf.split(',').map(|h| h.trim().trim_start_matches('\u{feff}').to_string()).collect();
+    // Column index of each known name.
+    let mut col: [Option<usize>; 11] = [None; 11];
+    let mut ignored = Vec::new();
+    for (i, h) in header.iter().enumerate() {
+        match COLUMNS.iter().position(|c| c == h) {
+            Some(k) if col[k].is_some() => return Err(format!("{p} line 1 (header): column {h} appears twice")),
+            Some(k) => col[k] = Some(i),
+            None => ignored.push(h.clone()),
+        }
+    }
+    let missing: Vec<&str> = (0..REQUIRED).filter(|&k| col[k].is_none()).map(|k| COLUMNS[k]).collect();
+    if !missing.is_empty() {
+        return Err(format!(
+            "{p} line 1 (header): missing required column(s) {} (want {}; mx,my,mz,temp optional)",
+            missing.join(", "),
+            COLUMNS.join(",")
+        ));
+    }
+    let mag_cols = col[7..10].iter().filter(|c| c.is_some()).count();
+    if mag_cols != 0 && mag_cols != 3 {
+        return Err(format!("{p} line 1 (header): the magnetometer columns mx, my, mz go together (found {mag_cols} of 3)"));
+    }
+    let mut out = ImuCsv { ignored, ..Default::default() };
+    let mut magn = Vec::new();
+    let mut temp = Vec::new();
+    // Whether the optional channels carry values (decided by the first data line).
+    let mut has_mag: Option<bool> = if mag_cols == 3 { None } else { Some(false) };
+    let mut has_temp: Option<bool> = if col[10].is_some() { None } else { Some(false) };
+    let mut vals = [None; 11];
+    loop {
+        if !next_line(&mut buf, &mut no)? {
+            break;
+        }
+        if buf.trim().is_empty() {
+            continue;
+        }
+        let fields: Vec<&str> = buf.split(',').collect();
+        if fields.len() != header.len() {
+            return Err(format!("{p} line {no}: {} fields, the header has {}", fields.len(), header.len()));
+        }
+        for k in 0..11 {
+            vals[k] = match col[k] {
+                Some(i) => field(fields[i], COLUMNS[k], &p, no)?,
+                None => None,
+            };
+        }
+        for k in 0..REQUIRED {
+            if vals[k].is_none() {
+                return Err(format!("{p} line {no}, column {}: empty (a required column)", COLUMNS[k]));
+            }
+        }
+        let t = vals[0].unwrap_or_default();
+        if let Some(&prev) = out.t.last() {
+            if t <= prev {
+                return Err(format!("{p} line {no}, column t: time {t} s is not after the previous line's {prev} s (time must increase)"));
+            }
+        }
+        // Optional channels: recorded on every line or on none.
+        let mag_here = vals[7..10].iter().filter(|v| v.is_some()).count();
+        if mag_cols == 3 {
+            let present = match mag_here {
+                0 => false,
+                3 => true,
+                _ => {
+                    let k = (7..10).find(|&k| vals[k].is_none()).unwrap_or(7);
+                    return Err(format!("{p} line {no}, column {}: empty while the other magnetometer columns have values", COLUMNS[k]));
+                }
+            };
+            match has_mag {
+                None => has_mag = Some(present),
+                Some(h) if h != present => {
+                    return Err(format!(
+                        "{p} line {no}, column mx: {} here but {} on the first data line (a channel is recorded on every line or on none)",
+                        if present { "a value" } else { "empty" },
+                        if h { "values" } else { "empty" }
+                    ))
+                }
+                _ => {}
+            }
+        }
+        if col[10].is_some() {
+            let present = vals[10].is_some();
+            match has_temp {
+                None => has_temp = Some(present),
+                Some(h) if h != present => {
+                    return Err(format!(
+                    "{p} line {no}, column temp: {} here but {} on the first data line (a channel is recorded on every line or on none)",
+                    if present { "a value" } else { "empty" },
+                    if h { "a value" } else { "empty" }
+                ))
+                }
+                _ => {}
+            }
+        }
+        let v3 = |a: usize| [vals[a].unwrap_or(0.0), vals[a + 1].unwrap_or(0.0), vals[a + 2].unwrap_or(0.0)];
+        out.line.push(no);
+        out.t.push(t);
+        out.gyro.push(axes.apply(v3(1)));
+        out.accel.push(axes.apply(v3(4)));
+        if has_mag == Some(true) {
+            magn.push(axes.apply(v3(7)));
+        }
+        if has_temp == Some(true) {
+            temp.push(vals[10].unwrap_or(0.0));
+        }
+    }
+    if out.t.is_empty() {
+        return Err(format!("{p}: no data lines after the header"));
+    }
+    if has_mag == Some(true) {
+        out.magn = Some(magn);
+    }
+    if has_temp == Some(true) {
+        out.temp = Some(temp);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn axes_maps_parse_and_apply() {
+        let m = AxesMap::parse("x,-y,-z").unwrap();
+        assert_eq!(m.apply([1.0, 2.0, 3.0]), [1.0, -2.0, -3.0]);
+        assert!(m.is_rotation());
+        let m = AxesMap::parse("y, x, -z").unwrap();
+        assert_eq!(m.apply([1.0, 2.0, 3.0]), [2.0, 1.0, -3.0]);
+        assert!(m.is_rotation());
+        assert!(!AxesMap::parse("x,y,-z").unwrap().is_rotation());
+        for bad in ["x,y", "x,x,z", "x,y,w", "x,--y,z", ""] {
+            assert!(AxesMap::parse(bad).is_err(), "{bad}");
+        }
+    }
+
+    fn write(dir: &Path, name: &str, text: &str) -> std::path::PathBuf {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    #[test]
+    fn optional_channels_absent_or_empty() {
+        let d = tempfile::tempdir().unwrap();
+        let p = write(d.path(), "a.csv", "t,gx,gy,gz,ax,ay,az,mx,my,mz,temp\n0,1,2,3,0,0,-1,,,,\n0.01,1,2,3,0,0,-1,,,,\n");
+        let c = read_imu_csv(&p, &AxesMap::IDENTITY).unwrap();
+        assert_eq!(c.len(), 2);
+        assert!(c.magn.is_none() && c.temp.is_none());
+        let p = write(d.path(), "b.csv", "az,ay,ax,gz,gy,gx,t,extra\n-1,0,0.5,3,2,1,0,9\n");
+        let c = read_imu_csv(&p, &AxesMap::parse("x,-y,-z").unwrap()).unwrap();
+        assert_eq!(c.gyro[0], [1.0, -2.0, -3.0]);
+        assert_eq!(c.accel[0], [0.5, 0.0, 1.0]);
+        assert_eq!(c.ignored, vec!["extra".to_string()]);
+    }
+
+    #[test]
+    fn a_channel_that_comes_and_goes_is_refused() {
+        let d = tempfile::tempdir().unwrap();
+        let p = write(d.path(), "a.csv", "t,gx,gy,gz,ax,ay,az,temp\n0,1,2,3,0,0,-1,25\n0.01,1,2,3,0,0,-1,\n");
+        let e = read_imu_csv(&p, &AxesMap::IDENTITY).unwrap_err();
+        assert!(e.contains("line 3, column temp"), "{e}");
+        let p = write(d.path(), "b.csv", "t,gx,gy,gz,ax,ay,az,mx,my,mz\n0,1,2,3,0,0,-1,0.1,,0.3\n");
+        let e = read_imu_csv(&p, &AxesMap::IDENTITY).unwrap_err();
+        assert!(e.contains("line 2, column my"), "{e}");
+    }
+}
