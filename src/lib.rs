@@ -19,6 +19,7 @@ pub mod output;
 pub mod pipeline;
 pub mod replay;
 pub mod sim;
+pub mod speed;
 pub mod switching;
 pub mod thermal;
 pub mod vehicle;
