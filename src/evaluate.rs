@@ -404,6 +404,7 @@ pub fn evaluate_seeds(base: &Config, sim: &SimOptions, seeds: std::ops::RangeInc
             let mut c = c.clone();
             if let Some(u) = &data.unit_config {
                 c.thermal = u.thermal.clone();
+                c.mounting = u.mounting.clone();
             }
             let (est, mode_s) = data.estimates(&c)?;
             if orc.is_none() {
@@ -437,10 +438,11 @@ pub fn evaluate_seeds(base: &Config, sim: &SimOptions, seeds: std::ops::RangeInc
     }
     let orc_med = median(&rows.iter().map(|r| r.oracle.tilt_max()).collect::<Vec<_>>());
     out += &format!(
-        "\nsummary over {} seeds of {}{} ({} s), scored from {:.0} s; oracle floor (median of per-seed max roll/pitch) {:.3} deg\n",
+        "\nsummary over {} seeds of {}{}{} ({} s), scored from {:.0} s; oracle floor (median of per-seed max roll/pitch) {:.3} deg\n",
         rows.len(),
         sim.scenario,
         if sim.hard { " --hard" } else { "" },
+        if sim.power_on_moving { " --power-on-moving" } else { "" },
         sim.duration.unwrap_or_else(|| sim::scenario::default_duration(&sim.scenario)),
         o.score_from,
         orc_med
@@ -606,6 +608,9 @@ pub struct EvaluateArgs {
     pub scenario: Option<String>,
     #[arg(long, requires = "seeds")]
     pub hard: bool,
+    /// The simulated runs start while the car is already driving.
+    #[arg(long, requires = "seeds")]
+    pub power_on_moving: bool,
     #[arg(long, requires = "seeds")]
     pub duration: Option<f64>,
     /// Relative error of the thermal slope the estimator is given (with --seeds).
@@ -635,6 +640,7 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
             let sc = a.scenario.as_deref().ok_or("--seeds needs --scenario")?;
             let mut so = SimOptions::new(sc, 0);
             so.hard = a.hard;
+            so.power_on_moving = a.power_on_moving;
             so.duration = a.duration;
             so.thermal_error = a.thermal_error;
             so.profile = cfg.input.profile.clone();

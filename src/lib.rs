@@ -22,5 +22,6 @@ pub mod pipeline;
 pub mod reference;
 pub mod replay;
 pub mod sim;
+pub mod speed;
 pub mod switching;
 pub mod thermal;

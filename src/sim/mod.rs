@@ -3,14 +3,24 @@
 //!
 //! Output directory:
 //! - `imu.log`: candump -l, the ADIS contract, quantised to the profile's LSBs;
-//! - `truth.csv`: `t,roll,pitch,yaw,p,q,r,fx,fy,fz,temp` (s, deg, deg/s, g, deg C);
+//! - `imu.log` also carries the car's `WHEEL_SPEEDS` frames in the `urban`
+//!   scenario ([`wheel`]), interleaved by timestamp, and `car.dbc` describes them;
+//! - `truth.csv`: `t,roll,pitch,yaw,p,q,r,fx,fy,fz,temp` (s, deg, deg/s, g, deg C),
+//!   the vehicle's attitude and rates (vehicle frame) and the specific force
+//!   at the sensor position (vehicle axes; with the urban road vibration);
+//! - `vehicle.csv` (urban): `t,speed,a_long,a_lat,dist,grade` (m/s of the
+//!   rear-axle centre, negative reversing; g; g; m; deg);
 //! - `sensor.toml`: the sensor error parameters actually drawn ([`model`]);
 //! - `bias.csv`: `t,bx,by,bz`, the true additive gyro bias (deg/s) including
 //!   its random walk (what a perfect bias estimator would output);
-//! - `scenario.toml`: name, seed, duration, the start of the manoeuvres;
+//! - `scenario.toml`: name, seed, duration, the start of the manoeuvres, the
+//!   mounting, and (urban) the wheel-speed source drawn and the drive's
+//!   statistics ([`stats`]);
 //! - `config.toml`: a gyrocomp config for this unit whose thermal curve is the
 //!   drawn linear slope with a per-axis error (a chamber calibration known to
-//!   +-`thermal_error`).
+//!   +-`thermal_error`); `[mounting]` (urban, or with a mounting rotation);
+//!   `[speed]` only when asked (`SimOptions::speed`), so that one run can be
+//!   evaluated with and without the wheel speeds.
 //!
 //! Determinism: everything is drawn from `ChaCha8Rng::seed_from_u64(seed)`
 //! on separate streams (motion, sensor, noise, calibration), so the same
@@ -19,23 +29,29 @@
 pub mod cli;
 pub mod model;
 pub mod motion;
+pub mod road;
 pub mod scenario;
+pub mod stats;
+pub mod urban;
+pub mod wheel;
 
 use crate::adis::{builtin_profile, InputIds, Profile, RawSample};
 use crate::candump::LogWriter;
+use crate::outfile::OutFile;
 use model::{
     Effect, GSensitivity, GyroInput, GyroModel, Misalignment, ScaleFactor, SensorModel, ThermalLinear, ThermalQuadratic, ThermalRate,
     TimeDelay, TurnOnBias, VibrationModel, WarmupTransient,
 };
-use motion::{c_nb, to_body, MotionSpec, Truth, TruthGen};
+use motion::{c_nb, to_body, to_ned, MotionSpec, Truth, TruthGen};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
-use scenario::{sym, uni, Ranges, TABLE1_P1};
+use scenario::{sym, uni, MotionOptions, Ranges, TABLE1_P1};
 use serde::{Deserialize, Serialize};
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use stats::{DriveStats, StatsAcc};
+use std::io::Write;
 use std::path::{Path, PathBuf};
+use wheel::{WheelBus, WheelParams};
 
 /// Time of the first frame in the log, s since the epoch.
 pub const LOG_EPOCH_S: u64 = 1_700_000_000;
@@ -56,6 +72,12 @@ pub struct SimOptions {
     pub ranges: Option<String>,
     /// Relative error of the thermal slope written to `config.toml`.
     pub thermal_error: f64,
+    /// Start while already driving (paper, vehicle, urban).
+    pub power_on_moving: bool,
+    /// The sensor frame in the vehicle frame, Z-Y-X `[roll, pitch, yaw]`, deg.
+    pub mounting: Option<[f64; 3]>,
+    /// Write a `[speed]` section (the wheel speeds of `car.dbc`) into `config.toml`.
+    pub speed: bool,
 }
 
 impl SimOptions {
@@ -69,6 +91,9 @@ impl SimOptions {
             model: None,
             ranges: None,
             thermal_error: 0.05,
+            power_on_moving: false,
+            mounting: None,
+            speed: false,
         }
     }
 }
@@ -87,6 +112,31 @@ pub struct ScenarioInfo {
     pub manoeuvre_start_s: f64,
     /// Relative error of the thermal slope in `config.toml`.
     pub thermal_error: f64,
+    /// The run started while the car was driving.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub power_on_moving: bool,
+    /// The sensor frame in the vehicle frame, Z-Y-X `[roll, pitch, yaw]`, deg.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mounting: Option<[f64; 3]>,
+    /// Sensor position from the rear-axle centre, vehicle axes, m (urban).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lever_arm: Option<[f64; 3]>,
+    /// The wheel-speed source drawn for this run (urban).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wheel_speeds: Option<WheelParams>,
+    /// The drive's statistics (urban).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stats: Option<DriveStats>,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
+}
+
+/// Rotation matrix of the sensor frame in the vehicle frame (maps sensor
+/// vectors to vehicle vectors) from Z-Y-X `[roll, pitch, yaw]` in deg.
+pub fn mounting_matrix(rpy_deg: [f64; 3]) -> [[f64; 3]; 3] {
+    c_nb(rpy_deg[0].to_radians(), rpy_deg[1].to_radians(), rpy_deg[2].to_radians())
 }
 
 fn stream(seed: u64, s: u64) -> ChaCha8Rng {
@@ -174,6 +224,8 @@ pub struct Sensor<'a> {
     gyro_sigma: f64,
     accel_sigma: f64,
     walk_sigma: f64,
+    /// Sensor frame in the vehicle frame (None: aligned).
+    mount: Option<[[f64; 3]; 3]>,
 }
 
 /// What the sensor measured (physical units) and the true additive bias.
@@ -183,7 +235,8 @@ pub struct Measured {
     pub accel: [f64; 3],
     pub magn: [f64; 3],
     pub temp: f64,
-    /// True additive gyro bias (deterministic part + random walk), deg/s.
+    /// True additive gyro bias (deterministic part + random walk), deg/s,
+    /// in the vehicle frame (the sensor-frame bias rotated by the mounting).
     pub bias: [f64; 3],
 }
 
@@ -201,7 +254,16 @@ impl<'a> Sensor<'a> {
             gyro_sigma: n.gyro_white * bw,
             accel_sigma: n.accel_white * bw,
             walk_sigma: n.gyro_bias_walk * dt.sqrt(),
+            mount: None,
         }
+    }
+
+    /// Mount the sensor rotated in the vehicle: `rpy_deg` is the sensor frame
+    /// in the vehicle frame (Z-Y-X, deg). Its samples are then in the sensor
+    /// frame; the truth stays in the vehicle frame.
+    pub fn with_mounting(mut self, rpy_deg: Option<[f64; 3]>) -> Sensor<'a> {
+        self.mount = rpy_deg.filter(|m| *m != [0.0; 3]).map(mounting_matrix);
+        self
     }
 
     fn n(&mut self) -> f64 {
@@ -212,13 +274,18 @@ impl<'a> Sensor<'a> {
     pub fn measure(&mut self, tr: &Truth) -> Measured {
         let m = self.model;
         let vib = vibration(&m.vibration, tr.t);
-        let f = [tr.f[0] + vib[0], tr.f[1] + vib[1], tr.f[2] + vib[2]];
+        let mut f = [tr.f[0] + vib[0], tr.f[1] + vib[1], tr.f[2] + vib[2]];
+        let mut rate = tr.rate;
+        if let Some(r) = &self.mount {
+            f = to_body(r, &f);
+            rate = to_body(r, &rate);
+        }
         let rate_dot = match self.prev_rate {
-            Some(p) => [(tr.rate[0] - p[0]) / self.dt, (tr.rate[1] - p[1]) / self.dt, (tr.rate[2] - p[2]) / self.dt],
+            Some(p) => [(rate[0] - p[0]) / self.dt, (rate[1] - p[1]) / self.dt, (rate[2] - p[2]) / self.dt],
             None => [0.0; 3],
         };
-        self.prev_rate = Some(tr.rate);
-        let x = GyroInput { rate: tr.rate, rate_dot, f, temp: tr.temp, temp_rate: tr.temp_rate, t_on: tr.t };
+        self.prev_rate = Some(rate);
+        let x = GyroInput { rate, rate_dot, f, temp: tr.temp, temp_rate: tr.temp_rate, t_on: tr.t };
         let det = m.gyro.measure(&x);
         let det_bias = m.gyro.bias(&x);
         let mut out = Measured::default();
@@ -234,7 +301,11 @@ impl<'a> Sensor<'a> {
             out.accel[k] = f[k] + m.accel.bias[k] + self.accel_sigma * e;
         }
         let c = c_nb(tr.roll.to_radians(), tr.pitch.to_radians(), tr.yaw.to_radians());
-        let mb = to_body(&c, &m.magn.field_ned);
+        let mut mb = to_body(&c, &m.magn.field_ned);
+        if let Some(r) = &self.mount {
+            mb = to_body(r, &mb);
+            out.bias = to_ned(r, &out.bias);
+        }
         for k in 0..3 {
             let e = self.n();
             out.magn[k] = mb[k] + m.magn.bias[k] + m.noise.magn_white * e;
@@ -253,6 +324,8 @@ pub struct SimRun {
     pub profile: Profile,
     /// gyrocomp config text with the (perturbed) thermal curve.
     pub config_toml: String,
+    /// The wheel-speed source (urban).
+    pub wheel: Option<WheelParams>,
 }
 
 /// Prepare a run: draw the motion, the sensor and the calibration.
@@ -272,7 +345,16 @@ pub fn prepare(o: &SimOptions) -> Result<SimRun, String> {
     if !(o.thermal_error.is_finite() && o.thermal_error >= 0.0) {
         return Err(format!("--thermal-error must be >= 0, got {}", o.thermal_error));
     }
-    let spec = scenario::motion(&o.scenario, o.hard, duration, &mut stream(o.seed, 1), &ranges)?;
+    if let Some(m) = o.mounting {
+        if m.iter().any(|x| !x.is_finite() || x.abs() > 180.0) || m[1].abs() > 90.0 {
+            return Err(format!("--mounting wants roll,pitch,yaw in deg (roll and yaw within +-180, pitch within +-90), got {m:?}"));
+        }
+    }
+    if o.speed && o.scenario != "urban" {
+        return Err(format!("--speed: only the urban scenario puts wheel speeds on the bus, not {:?}", o.scenario));
+    }
+    let mo = MotionOptions { hard: o.hard, power_on_moving: o.power_on_moving };
+    let spec = scenario::motion_with(&o.scenario, &mo, duration, &mut stream(o.seed, 1), &ranges)?;
     let model = match &o.model {
         Some(m) => m.clone(),
         None => draw_model(&mut stream(o.seed, 2), &ranges),
@@ -286,7 +368,7 @@ pub fn prepare(o: &SimOptions) -> Result<SimRun, String> {
         _ => (25.0, [0.0; 3]),
     };
     let p1c: Vec<String> = p1.iter().map(|p| format!("{:.7}", p * (1.0 + sym(&mut cal, o.thermal_error)))).collect();
-    let config_toml = format!(
+    let mut config_toml = format!(
         "# gyrocomp config for simulated unit {} seed {}: thermal slope known to +-{} %.\n[input]\nprofile = \"{}\"\n\n[thermal]\nt0 = {:.3}\np1 = [{}]\np2 = [0.0, 0.0, 0.0]\n",
         o.scenario,
         o.seed,
@@ -295,6 +377,39 @@ pub fn prepare(o: &SimOptions) -> Result<SimRun, String> {
         t0,
         p1c.join(", ")
     );
+    let lever_arm = spec.road.as_ref().map(|r| r.lever_arm);
+    if o.mounting.is_some() || lever_arm.is_some() {
+        let fmt = |v: [f64; 3]| v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(", ");
+        config_toml += &format!(
+            "\n[mounting]\nrotation = [{}]\nlever_arm = [{}]\n",
+            fmt(o.mounting.unwrap_or([0.0; 3])),
+            fmt(lever_arm.unwrap_or([0.0; 3]))
+        );
+    }
+    // The wheel-speed source: drawn on its own stream, whatever the flags.
+    let wheel = (o.scenario == "urban").then(|| {
+        let mut w = stream(o.seed, 5);
+        WheelParams {
+            id: wheel::WHEEL_SPEEDS_ID,
+            period_s: 0.02,
+            latency_s: (uni(&mut w, ranges.wheel_latency_s) * 1e4).round() / 1e4,
+            scale_error: (sym(&mut w, ranges.wheel_scale_error) * 1e5).round() / 1e5,
+            noise_kmh: ranges.wheel_noise_kmh,
+            dead_band_kmh: 3.6 * urban::STOP_SPEED,
+            track_m: 1.6,
+            wheelbase_m: 2.7,
+            phase_s: (uni(&mut w, [0.0, 0.02]) * 1e5).round() / 1e5,
+        }
+    });
+    if o.speed {
+        config_toml += &format!(
+            "\n# Wheel speeds from the car's bus (car.dbc beside this file); the tyre scale error is not known here.\n\
+             [speed]\ndbc = \"car.dbc\"\nmessage = \"{}\"\nsignals = [\"{}\", \"{}\"]\nscale = 1.0\ntimeout_s = 0.5\n",
+            wheel::WHEEL_SPEEDS_MESSAGE,
+            wheel::REAR_SIGNALS[0],
+            wheel::REAR_SIGNALS[1]
+        );
+    }
     let info = ScenarioInfo {
         scenario: o.scenario.clone(),
         seed: o.seed,
@@ -304,13 +419,18 @@ pub fn prepare(o: &SimOptions) -> Result<SimRun, String> {
         profile: o.profile.clone(),
         manoeuvre_start_s: spec.manoeuvre_start,
         thermal_error: o.thermal_error,
+        power_on_moving: o.power_on_moving,
+        mounting: o.mounting,
+        lever_arm,
+        wheel_speeds: wheel.clone(),
+        stats: None,
     };
-    Ok(SimRun { info, spec, model, profile, config_toml })
+    Ok(SimRun { info, spec, model, profile, config_toml, wheel })
 }
 
 /// Streams `(truth, measured, raw sample)` for a prepared run.
 pub fn samples(run: &SimRun, seed: u64) -> impl Iterator<Item = (Truth, Measured, RawSample)> + '_ {
-    let mut sensor = Sensor::new(&run.model, run.profile.rate_hz, stream(seed, 3));
+    let mut sensor = Sensor::new(&run.model, run.profile.rate_hz, stream(seed, 3)).with_mounting(run.info.mounting);
     let p = &run.profile;
     TruthGen::new(&run.spec, p.rate_hz).enumerate().map(move |(k, tr)| {
         let m = sensor.measure(&tr);
@@ -320,7 +440,77 @@ pub fn samples(run: &SimRun, seed: u64) -> impl Iterator<Item = (Truth, Measured
     })
 }
 
+/// One CAN frame of the simulated bus: time (us since the epoch), ID, payload.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BusFrame {
+    pub t_us: u64,
+    pub id: u32,
+    pub data: [u8; 8],
+}
+
+/// One IMU sample with the bus frames up to it, in time order: the sample's
+/// four ADIS frames and the wheel-speed frames sent before and between them
+/// (after the last sample: the remaining wheel frames whose speeds are known).
+pub struct BusSample {
+    pub truth: Truth,
+    pub measured: Measured,
+    pub raw: RawSample,
+    frames: [BusFrame; 8],
+    n: usize,
+}
+
+impl BusSample {
+    pub fn frames(&self) -> &[BusFrame] {
+        &self.frames[..self.n]
+    }
+}
+
+/// Time of a sample's first frame, us since the epoch.
+pub fn sample_time_us(t: f64) -> u64 {
+    LOG_EPOCH_S * 1_000_000 + (t * 1e6).round() as u64
+}
+
+/// The whole bus of a prepared run (what `imu.log` carries), sample by sample.
+pub fn bus(run: &SimRun, seed: u64) -> impl Iterator<Item = BusSample> + '_ {
+    let ids = InputIds::DEFAULT.all();
+    let total = TruthGen::new(&run.spec, run.profile.rate_hz).len() as usize;
+    let mut wheels = run.wheel.clone().map(|p| WheelBus::new(p, stream(seed, 6)));
+    samples(run, seed).enumerate().map(move |(k, (tr, m, raw))| {
+        let t_us = sample_time_us(tr.t);
+        let mut out = BusSample { truth: tr, measured: m, raw, frames: [BusFrame::default(); 8], n: 0 };
+        let push = |o: &mut BusSample, f: BusFrame| {
+            if o.n < o.frames.len() {
+                o.frames[o.n] = f;
+                o.n += 1;
+            }
+        };
+        if let Some(w) = wheels.as_mut() {
+            w.push(&tr);
+        }
+        let epoch = LOG_EPOCH_S * 1_000_000;
+        for (i, d) in raw.encode().iter().enumerate() {
+            // four frames back to back (~120 us each at 1 Mbit/s)
+            let ti = t_us + 120 * i as u64;
+            if let Some(w) = wheels.as_mut() {
+                while let Some((tw, wd)) = w.pop_before(ti - epoch) {
+                    push(&mut out, BusFrame { t_us: epoch + tw, id: wheel::WHEEL_SPEEDS_ID, data: wd });
+                }
+            }
+            push(&mut out, BusFrame { t_us: ti, id: ids[i], data: *d });
+        }
+        if k + 1 == total {
+            if let Some(w) = wheels.as_mut() {
+                while let Some((tw, wd)) = w.pop_any() {
+                    push(&mut out, BusFrame { t_us: epoch + tw, id: wheel::WHEEL_SPEEDS_ID, data: wd });
+                }
+            }
+        }
+        out
+    })
+}
+
 pub const TRUTH_HEADER: &str = "t,roll,pitch,yaw,p,q,r,fx,fy,fz,temp\n";
+pub const VEHICLE_HEADER: &str = "t,speed,a_long,a_lat,dist,grade\n";
 
 /// Append one truth.csv row.
 pub fn write_truth_row(out: &mut impl Write, tr: &Truth) -> std::io::Result<()> {
@@ -336,6 +526,8 @@ pub fn write_truth_row(out: &mut impl Write, tr: &Truth) -> std::io::Result<()> 
 pub struct SimFiles {
     pub dir: PathBuf,
     pub samples: u64,
+    /// Wheel-speed frames in `imu.log`.
+    pub wheel_frames: u64,
     pub info: ScenarioInfo,
 }
 
@@ -344,43 +536,72 @@ fn io_err(p: &Path) -> impl Fn(std::io::Error) -> String + '_ {
 }
 
 /// Run a simulation and write its files into `dir` (created if needed).
+/// Every file is written under a temporary name and renamed when complete.
 pub fn simulate(o: &SimOptions, dir: &Path) -> Result<SimFiles, String> {
-    let run = prepare(o)?;
+    let mut run = prepare(o)?;
     std::fs::create_dir_all(dir).map_err(io_err(dir))?;
-    let create = |name: &str| -> Result<(PathBuf, BufWriter<File>), String> {
+    let create = |name: &str| -> Result<(PathBuf, OutFile), String> {
         let p = dir.join(name);
-        let f = File::create(&p).map_err(io_err(&p))?;
-        Ok((p, BufWriter::with_capacity(1 << 20, f)))
+        let f = OutFile::create(&p).map_err(io_err(&p))?;
+        Ok((p, f))
     };
     let (log_p, log_f) = create("imu.log")?;
     let (truth_p, mut truth) = create("truth.csv")?;
     let (bias_p, mut bias) = create("bias.csv")?;
+    let is_road = run.spec.road.is_some();
+    let mut vehicle = if is_road { Some(create("vehicle.csv")?) } else { None };
     let mut log = LogWriter::new(log_f, "vcan0");
     truth.write_all(TRUTH_HEADER.as_bytes()).map_err(io_err(&truth_p))?;
     bias.write_all(b"t,bx,by,bz\n").map_err(io_err(&bias_p))?;
-    let ids = InputIds::DEFAULT.all();
-    let mut n = 0u64;
-    for (tr, m, raw) in samples(&run, o.seed) {
-        let t_us = LOG_EPOCH_S * 1_000_000 + (tr.t * 1e6).round() as u64;
-        for (i, d) in raw.encode().iter().enumerate() {
-            // four frames back to back (~120 us each at 1 Mbit/s)
-            log.frame(t_us + 120 * i as u64, ids[i], d).map_err(io_err(&log_p))?;
+    if let Some((p, f)) = vehicle.as_mut() {
+        f.write_all(VEHICLE_HEADER.as_bytes()).map_err(io_err(p))?;
+    }
+    let mut acc = StatsAcc::new(run.profile.rate_hz);
+    let (mut n, mut nw) = (0u64, 0u64);
+    for s in bus(&run, o.seed) {
+        for f in s.frames() {
+            log.frame(f.t_us, f.id, &f.data).map_err(io_err(&log_p))?;
+            nw += u64::from(f.id == wheel::WHEEL_SPEEDS_ID);
         }
-        write_truth_row(&mut truth, &tr).map_err(io_err(&truth_p))?;
+        let (tr, m) = (&s.truth, &s.measured);
+        write_truth_row(&mut truth, tr).map_err(io_err(&truth_p))?;
         writeln!(bias, "{:.6},{:.7},{:.7},{:.7}", tr.t, m.bias[0], m.bias[1], m.bias[2]).map_err(io_err(&bias_p))?;
+        if let Some((p, f)) = vehicle.as_mut() {
+            writeln!(f, "{:.6},{:.5},{:.6},{:.6},{:.3},{:.5}", tr.t, tr.speed, tr.a_long, tr.a_lat, tr.dist, tr.grade)
+                .map_err(io_err(p))?;
+            acc.push(tr);
+        }
         n += 1;
     }
-    log.finish().map_err(io_err(&log_p))?.flush().map_err(io_err(&log_p))?;
-    truth.flush().map_err(io_err(&truth_p))?;
-    bias.flush().map_err(io_err(&bias_p))?;
+    if is_road {
+        run.info.stats = Some(acc.finish());
+    }
+    log.finish().map_err(io_err(&log_p))?.commit().map_err(io_err(&log_p))?;
+    truth.commit().map_err(io_err(&truth_p))?;
+    bias.commit().map_err(io_err(&bias_p))?;
+    if let Some((p, f)) = vehicle {
+        f.commit().map_err(io_err(&p))?;
+    }
     let write = |name: &str, text: &str| -> Result<(), String> {
         let p = dir.join(name);
-        std::fs::write(&p, text).map_err(io_err(&p))
+        crate::outfile::write_atomic(&p, text.as_bytes()).map_err(io_err(&p))
     };
     write("sensor.toml", &run.model.to_toml())?;
     write("scenario.toml", &toml::to_string(&run.info).map_err(|e| e.to_string())?)?;
     write("config.toml", &run.config_toml)?;
-    Ok(SimFiles { dir: dir.to_path_buf(), samples: n, info: run.info })
+    if run.wheel.is_some() {
+        write("car.dbc", wheel::EXAMPLE_DBC)?;
+    }
+    Ok(SimFiles { dir: dir.to_path_buf(), samples: n, wheel_frames: nw, info: run.info })
+}
+
+/// The driving statistics of a prepared run's truth (road kinematics).
+pub fn drive_stats(run: &SimRun) -> DriveStats {
+    let mut acc = StatsAcc::new(run.profile.rate_hz);
+    for tr in TruthGen::new(&run.spec, run.profile.rate_hz) {
+        acc.push(&tr);
+    }
+    acc.finish()
 }
 
 /// One row of truth.csv.

@@ -431,7 +431,9 @@ impl NoiseModel {
 /// `[vibration]`: engine / road vibration, a linear oscillation of the
 /// sensor mount (sub-mm). It is added to the specific force the sensor sees
 /// (the accelerometer and the g-sensitivity input), not to `truth.csv`, whose
-/// specific force is the vehicle's rigid-body motion.
+/// specific force is the vehicle's rigid-body motion. (The `urban` scenario's
+/// speed-dependent road vibration is part of its truth instead, see
+/// `road::RoadVibration`; this model is its engine idle vibration.)
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct VibrationModel {

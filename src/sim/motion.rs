@@ -44,16 +44,23 @@ impl Ease {
 
     /// Value and time derivative at `t`.
     pub fn eval(&self, t: f64) -> (f64, f64) {
+        let (v, dv, _) = self.eval2(t);
+        (v, dv)
+    }
+
+    /// Value, first and second time derivative at `t` (the second derivative
+    /// jumps at the knots: the profile is C1, not C2).
+    pub fn eval2(&self, t: f64) -> (f64, f64, f64) {
         let k = &self.knots;
         if k.is_empty() {
-            return (0.0, 0.0);
+            return (0.0, 0.0, 0.0);
         }
         if t <= k[0].0 {
-            return (k[0].1, 0.0);
+            return (k[0].1, 0.0, 0.0);
         }
         let i = k.partition_point(|p| p.0 <= t);
         if i >= k.len() {
-            return (k[k.len() - 1].1, 0.0);
+            return (k[k.len() - 1].1, 0.0, 0.0);
         }
         let (t0, v0) = k[i - 1];
         let (t1, v1) = k[i];
@@ -61,7 +68,8 @@ impl Ease {
         let s = (t - t0) / d;
         let v = v0 + (v1 - v0) * 0.5 * (1.0 - (PI * s).cos());
         let dv = (v1 - v0) * 0.5 * PI * (PI * s).sin() / d;
-        (v, dv)
+        let ddv = (v1 - v0) * 0.5 * PI * PI * (PI * s).cos() / (d * d);
+        (v, dv, ddv)
     }
 }
 
@@ -78,6 +86,13 @@ impl Sine {
         let w = 2.0 * PI * self.freq;
         let a = w * t + self.phase;
         (self.amp * a.sin(), self.amp * w * a.cos())
+    }
+
+    /// Value, first and second derivative with respect to the argument.
+    pub fn eval2(&self, x: f64) -> (f64, f64, f64) {
+        let w = 2.0 * PI * self.freq;
+        let (s, c) = (w * x + self.phase).sin_cos();
+        (self.amp * s, self.amp * w * c, -self.amp * w * w * s)
     }
 }
 
@@ -159,6 +174,11 @@ pub struct MotionSpec {
     pub thermal: Thermal,
     /// Start of the manoeuvres, s (scored window for the oracle floor).
     pub manoeuvre_start: f64,
+    /// Road kinematics ([`super::road`]): when set, the vehicle follows a
+    /// 3-D road (grades, camber, a yaw-rate command, a lever arm, reversing),
+    /// and `a_lat`, `roll_sines`, `pitch_sines`, `bumps`, `roll0`, `pitch0`
+    /// are not used. `None`: the planar model of the older scenarios.
+    pub road: Option<super::road::RoadSpec>,
 }
 
 /// The truth at one sample.
@@ -171,7 +191,8 @@ pub struct Truth {
     pub yaw: f64,
     /// Body rates `[p, q, r]`, deg/s.
     pub rate: [f64; 3],
-    /// Specific force, body FRD, g (without vibration).
+    /// Specific force, body FRD, g (without the sensor model's vibration;
+    /// road kinematics: at the sensor position, with the road vibration).
     pub f: [f64; 3],
     /// deg C and deg C/s.
     pub temp: f64,
@@ -179,8 +200,17 @@ pub struct Truth {
     /// Velocity and acceleration in NED, m/s and m/s^2.
     pub vel: [f64; 3],
     pub acc: [f64; 3],
-    /// Speed along the track, m/s.
+    /// Speed along the track, m/s (road kinematics: of the rear-axle centre,
+    /// negative when reversing).
     pub speed: f64,
+    /// Longitudinal acceleration `dv/dt` of the vehicle, g.
+    pub a_long: f64,
+    /// Lateral (centripetal) acceleration `v * yaw rate` of the vehicle, g.
+    pub a_lat: f64,
+    /// Distance travelled along the road, m (road kinematics; 0 otherwise).
+    pub dist: f64,
+    /// Road grade, deg (positive uphill; road kinematics; 0 otherwise).
+    pub grade: f64,
 }
 
 /// Body-to-NED rotation matrix `C_nb` of Z-Y-X Euler angles (rad).
@@ -232,11 +262,13 @@ pub struct TruthGen<'a> {
     v: f64,
     psi: f64,
     substeps: u32,
+    /// Distance travelled (road kinematics), m.
+    dist: f64,
 }
 
 impl<'a> TruthGen<'a> {
     pub fn new(spec: &'a MotionSpec, rate_hz: f64) -> TruthGen<'a> {
-        TruthGen { spec, dt: 1.0 / rate_hz, k: 0, v: spec.v0, psi: spec.yaw0 * D2R, substeps: 4 }
+        TruthGen { spec, dt: 1.0 / rate_hz, k: 0, v: spec.v0, psi: spec.yaw0 * D2R, substeps: 4, dist: 0.0 }
     }
 
     /// Number of samples in the run.
@@ -298,6 +330,9 @@ impl<'a> TruthGen<'a> {
 
     fn truth_now(&self) -> Truth {
         let t = self.k as f64 * self.dt;
+        if let Some(road) = &self.spec.road {
+            return road.truth(self.spec, t, self.v, self.psi, self.dist);
+        }
         let (roll, pitch, droll, dpitch) = self.tilt(t);
         let v = self.v;
         let psi = self.psi;
@@ -328,12 +363,22 @@ impl<'a> TruthGen<'a> {
             vel,
             acc,
             speed: v,
+            a_long: vdot / G,
+            a_lat: v * dpsi / G,
+            dist: 0.0,
+            grade: 0.0,
         }
     }
 
     /// Advance speed and heading by one sample period (RK4 sub-steps).
     fn advance(&mut self) {
         let h = self.dt / self.substeps as f64;
+        if let Some(road) = &self.spec.road {
+            let t = self.k as f64 * self.dt;
+            (self.v, self.psi, self.dist) = road.advance(self.spec, t, self.dt, self.substeps, (self.v, self.psi, self.dist));
+            self.k += 1;
+            return;
+        }
         let mut t = self.k as f64 * self.dt;
         for _ in 0..self.substeps {
             let (v, psi) = (self.v, self.psi);

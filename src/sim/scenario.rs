@@ -11,6 +11,14 @@
 //!   brakings, constant-radius 0.4 g turns of 20-30 s, short cruises between
 //!   them, vertical bumps, engine vibration, temperature rising 10-20 deg C,
 //!   turn-on bias up to +-0.5 deg/s; `hard` adds short manoeuvres above 0.6 g.
+//! - `urban`: city driving with the statistics of real drives ([`super::urban`]):
+//!   continuous 0.05-0.2 g speed changes, 5-7 s stops, about 90 tight turns
+//!   per 400 s (up to 0.6 g, 45 deg/s), hills of +-7 deg, a reversing
+//!   manoeuvre, the sensor 0.9 m ahead of the rear axle, wheel speeds on the
+//!   bus, turn-on bias up to +-5 deg/s.
+//!
+//! `power_on_moving` (paper, vehicle, urban): the run starts while the car is
+//! already driving (no parked start).
 
 use super::model::{Effect, NoiseModel};
 use super::motion::{Bump, Ease, MotionSpec, Sine, Thermal, G};
@@ -18,7 +26,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-pub const SCENARIOS: [&str; 4] = ["static", "chamber", "paper", "vehicle"];
+pub const SCENARIOS: [&str; 5] = ["static", "chamber", "paper", "vehicle", "urban"];
 
 /// Ranges the sensor parameters and environment are drawn from. Every field
 /// can be overridden by `gyrocomp simulate --ranges FILE` (a TOML file with
@@ -68,6 +76,24 @@ pub struct Ranges {
     pub self_heating: [f64; 2],
     /// Self-heating time constant, s: uniform in this range.
     pub heating_tau_s: [f64; 2],
+    /// Sensor position from the rear-axle centre, vehicle axes (x forward,
+    /// y right, z down), m. Only the road kinematics of `urban` model it;
+    /// the other scenarios refuse a non-zero value.
+    #[serde(default)]
+    pub lever_arm: [f64; 3],
+    /// Road vibration (urban), per tone on the z axis at speed, g: uniform in
+    /// this range (x 0.4, y 0.5 of it; six tones of 8-45 Hz; zero at a stop).
+    #[serde(default)]
+    pub road_vibration_g: [f64; 2],
+    /// Wheel speeds (urban): latency of the frames, s, uniform in this range.
+    #[serde(default)]
+    pub wheel_latency_s: [f64; 2],
+    /// Wheel speeds: tyre scale error, uniform in +-this (dimensionless).
+    #[serde(default)]
+    pub wheel_scale_error: f64,
+    /// Wheel speeds: white noise per wheel and frame, km/h.
+    #[serde(default)]
+    pub wheel_noise_kmh: f64,
 }
 
 /// The paper's Table 1 slopes p1, deg/s per deg C.
@@ -95,6 +121,11 @@ impl Ranges {
             ambient: [20.0, 30.0],
             self_heating: [8.0, 12.0],
             heating_tau_s: [150.0, 300.0],
+            lever_arm: [0.0; 3],
+            road_vibration_g: [0.0, 0.0],
+            wheel_latency_s: [0.0, 0.0],
+            wheel_scale_error: 0.0,
+            wheel_noise_kmh: 0.0,
         }
     }
 
@@ -124,6 +155,28 @@ impl Ranges {
                 r.vibration_g = [0.02, 0.04];
                 r.self_heating = [10.0, 20.0];
                 r.heating_tau_s = [150.0, 300.0];
+            }
+            "urban" => {
+                r.effects = vec![
+                    Effect::TurnOnBias,
+                    Effect::ThermalLinear,
+                    Effect::WarmupTransient,
+                    Effect::GSensitivity,
+                    Effect::ScaleFactor,
+                    Effect::Misalignment,
+                ];
+                // real turn-on biases are several deg/s (an ADIS16448 measured 4.5)
+                r.turn_on_bias = 5.0;
+                // engine idle: the sensor model's two tones, small (all there is at a stop)
+                r.vibration_g = [0.003, 0.008];
+                r.road_vibration_g = [0.006, 0.012];
+                r.ambient = [5.0, 35.0];
+                r.self_heating = [8.0, 15.0];
+                r.heating_tau_s = [300.0, 900.0];
+                r.lever_arm = [0.9, 0.0, 0.0];
+                r.wheel_latency_s = [0.02, 0.08];
+                r.wheel_scale_error = 0.03;
+                r.wheel_noise_kmh = 0.03;
             }
             _ => {}
         }
@@ -256,6 +309,7 @@ fn at_rest(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64) -> MotionSpec {
         bumps: vec![],
         thermal: thermal(rng, r),
         manoeuvre_start: 0.0,
+        road: None,
     }
 }
 
@@ -281,17 +335,23 @@ fn gentle(rng: &mut ChaCha8Rng, p: &mut Plan, until: f64) {
     p.seg(0.0, 0.0, 2.0, left);
 }
 
-fn road(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64) -> (MotionSpec, Plan) {
-    let mut p = Plan::new(0.0);
-    // Engine on, parked for 3 s, then pull away gently (0.08 g to ~12 m/s).
-    p.seg(0.0, 0.0, 0.5, 2.5);
-    p.seg(0.08, 0.0, 2.0, 13.0);
-    p.seg(0.0, 0.0, 2.0, 0.0);
+fn road(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64, power_on_moving: bool) -> (MotionSpec, Plan) {
+    let v0 = if power_on_moving { 12.0 } else { 0.0 };
+    let mut p = Plan::new(v0);
+    if power_on_moving {
+        // Already driving at 12 m/s.
+        p.seg(0.0, 0.0, 0.5, 2.0);
+    } else {
+        // Engine on, parked for 3 s, then pull away gently (0.08 g to ~12 m/s).
+        p.seg(0.0, 0.0, 0.5, 2.5);
+        p.seg(0.08, 0.0, 2.0, 13.0);
+        p.seg(0.0, 0.0, 2.0, 0.0);
+    }
     let spec = MotionSpec {
         duration,
         a_long: Ease::default(),
         a_lat: Ease::default(),
-        v0: 0.0,
+        v0,
         yaw0: rng.gen_range(-180.0..180.0),
         roll0: sym(rng, 1.0),
         pitch0: sym(rng, 1.0),
@@ -304,6 +364,7 @@ fn road(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64) -> (MotionSpec, Plan) {
         bumps: vec![],
         thermal: thermal(rng, r),
         manoeuvre_start: 350.0_f64.min(duration),
+        road: None,
     };
     (spec, p)
 }
@@ -320,10 +381,35 @@ fn bumps(rng: &mut ChaCha8Rng, from: f64, to: f64, every: [f64; 2], accel: [f64;
 
 /// Build the motion of a scenario.
 pub fn motion(name: &str, hard: bool, duration: f64, rng: &mut ChaCha8Rng, r: &Ranges) -> Result<MotionSpec, String> {
+    motion_with(name, &MotionOptions { hard, power_on_moving: false }, duration, rng, r)
+}
+
+/// Scenario options that shape the motion.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MotionOptions {
+    /// vehicle: add short manoeuvres above 0.6 g.
+    pub hard: bool,
+    /// paper, vehicle, urban: start while already driving.
+    pub power_on_moving: bool,
+}
+
+/// Build the motion of a scenario with its options.
+pub fn motion_with(name: &str, o: &MotionOptions, duration: f64, rng: &mut ChaCha8Rng, r: &Ranges) -> Result<MotionSpec, String> {
+    let hard = o.hard;
+    if r.lever_arm != [0.0; 3] && name != "urban" {
+        return Err(format!("ranges: lever_arm needs the road kinematics of the urban scenario, not {name:?}"));
+    }
+    if o.power_on_moving && matches!(name, "static" | "chamber") {
+        return Err(format!("--power-on-moving: the {name} scenario does not move"));
+    }
+    if hard && name == "urban" {
+        return Err("--hard is a variant of the vehicle scenario; urban has its own manoeuvres".into());
+    }
     match name {
         "static" | "chamber" => Ok(at_rest(rng, r, duration)),
+        "urban" => Ok(super::urban::motion(rng, r, duration, o.power_on_moving)),
         "paper" => {
-            let (mut spec, mut p) = road(rng, r, duration);
+            let (mut spec, mut p) = road(rng, r, duration, o.power_on_moving);
             gentle(rng, &mut p, spec.manoeuvre_start);
             // Sustained acceleration: a winding road, one curve into the next,
             // speed changing all the time; never a straight constant-speed stretch.
@@ -340,7 +426,7 @@ pub fn motion(name: &str, hard: bool, duration: f64, rng: &mut ChaCha8Rng, r: &R
             Ok(spec)
         }
         "vehicle" => {
-            let (mut spec, mut p) = road(rng, r, duration);
+            let (mut spec, mut p) = road(rng, r, duration, o.power_on_moving);
             gentle(rng, &mut p, spec.manoeuvre_start);
             let (lo, hi) = (8.0, 33.0);
             while p.t < duration {
@@ -403,6 +489,7 @@ pub fn default_duration(name: &str) -> f64 {
     match name {
         "static" => 300.0,
         "chamber" => 1800.0,
+        "urban" => 400.0,
         _ => 800.0,
     }
 }
