@@ -98,14 +98,17 @@ pub fn decode<R: std::io::Read>(input: R, cfg: &Config, name: &str) -> Result<De
     Ok(Decoded { samples, lines: st.lines, bad_lines: st.bad_lines, counters: asm.counters })
 }
 
-/// Is the magnetometer used (and so yaw scored, and VQF run 9D)?
-pub fn magnetometer_used(cfg: &Config) -> bool {
+/// Is the magnetometer configured (it may still be off: `"auto"` decides
+/// from the data, see `run_ours`)?
+pub fn magnetometer_configured(cfg: &Config) -> bool {
     let p = cfg.profile();
-    cfg.estimator.use_magnetometer && p.magnetometer && p.magn_lsb > 0.0
+    cfg.estimator.use_magnetometer != crate::config::AutoBool::Bool(false) && p.magnetometer && p.magn_lsb > 0.0
 }
 
-/// Our estimator over the samples: roll, pitch, yaw (deg) and mode per sample.
-pub fn run_ours(samples: &[Sample], cfg: &Config) -> (Vec<[f64; 3]>, Vec<u8>) {
+/// Our estimator over the samples: roll, pitch, yaw (deg) and mode per
+/// sample, and whether it used the magnetometer (yaw is scored, and VQF run
+/// 9D, only then).
+pub fn run_ours(samples: &[Sample], cfg: &Config) -> (Vec<[f64; 3]>, Vec<u8>, bool) {
     let mut e = Estimator::new(cfg);
     let mut att = Vec::with_capacity(samples.len());
     let mut modes = Vec::with_capacity(samples.len());
@@ -114,7 +117,8 @@ pub fn run_ours(samples: &[Sample], cfg: &Config) -> (Vec<[f64; 3]>, Vec<u8>) {
         att.push([x.roll, x.pitch, x.yaw]);
         modes.push(x.mode);
     }
-    (att, modes)
+    let magn = magnetometer_configured(cfg) && e.magnetometer().unwrap_or(true);
+    (att, modes, magn)
 }
 
 /// One estimator's result.
@@ -146,9 +150,8 @@ pub fn evaluate_samples(samples: &[Sample], cfg: &Config, r: &Reference, o: &Ref
     let refq = r.at_times(&ts, o.offset);
     let w = alignment_window(r, o.align_s, o.offset)?;
     let a = align(samples, &ts, &refq, &w)?;
-    let magn = magnetometer_used(cfg);
+    let (att, modes, magn) = run_ours(samples, cfg);
     let spec = ScoreSpec { ts: &ts, refq: &refq, align: &a, skip: o.skip, period, yaw: magn };
-    let (att, modes) = run_ours(samples, cfg);
     let (sc, errors) = score(&att, Some(&modes), &spec);
     let mut results = vec![Scored { name: "ours".into(), scores: sc, errors, modes: Some(modes) }];
     if o.peers {
