@@ -408,11 +408,14 @@ pub struct RestConfig {
     pub band: f64,
     /// Largest low-passed bias-corrected rate, deg/s (plus three bias sigmas). Default 0.5.
     pub rate_dps: f64,
+    /// Largest change of the low-passed specific force since the conditions
+    /// began, g (a car creeping away from a stop is not standing). Default 0.01.
+    pub drift_g: f64,
 }
 
 impl Default for RestConfig {
     fn default() -> Self {
-        RestConfig { tau_s: 0.5, min_s: 1.0, gyro_dev_dps: 0.6, accel_dev_g: 0.04, band: 0.005, rate_dps: 0.5 }
+        RestConfig { tau_s: 0.5, min_s: 1.0, gyro_dev_dps: 0.6, accel_dev_g: 0.04, band: 0.005, rate_dps: 0.5, drift_g: 0.01 }
     }
 }
 
@@ -719,6 +722,7 @@ impl Config {
         positive("rest.accel_dev_g", r.accel_dev_g)?;
         positive("rest.band", r.band)?;
         positive("rest.rate_dps", r.rate_dps)?;
+        positive("rest.drift_g", r.drift_g)?;
         let o = &self.output;
         let oids = [o.rate_id, o.attitude_id, o.bias_id, o.status_id];
         for (k, v) in ["output.rate_id", "output.attitude_id", "output.bias_id", "output.status_id"].iter().zip(oids) {

@@ -52,7 +52,7 @@ pub const G: f64 = 9.80665;
 const D2R: f64 = std::f64::consts::PI / 180.0;
 /// A unit that becomes still at a speed above this (m/s, and above three
 /// sigmas) is cruising smoothly, not standing: no zero-velocity update.
-const CRUISE_SPEED: f64 = 5.0;
+const CRUISE_SPEED: f64 = 1.0;
 
 /// Whether the magnetometer is used for heading.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -220,11 +220,15 @@ pub struct Mekf {
     nhc_refused: f64,
     /// Speed and its sigma when the unit became still (m/s).
     still_speed: Option<(f64, f64)>,
+    /// A counter gap happened and no still period has ended since.
+    after_gap: bool,
     /// A bias is known (a rest was seen or a prior given).
     bias_known: bool,
     /// The vehicle model is in use; the low-passed squared x/y body rate.
     vehicle: bool,
     xy_rate2: f64,
+    /// g0 of the facade (|f| at power-on, g).
+    g0: f64,
     /// The last tick's outcome, held until the next tick.
     mode: u8,
     tick_flags: u16,
@@ -265,9 +269,11 @@ impl Mekf {
             refused_still: 0.0,
             nhc_refused: 0.0,
             still_speed: None,
+            after_gap: false,
             bias_known: false,
             vehicle: true,
             xy_rate2: 0.0,
+            g0: 1.0,
             mode: 2,
             tick_flags: 0,
             speed: None,
@@ -389,11 +395,13 @@ impl Mekf {
         self.rest.reset();
         self.switching.reset();
         self.dwell = 0.0;
+        self.after_gap = true;
     }
 
     /// One sample; returns (mode, flags).
     pub fn step(&mut self, s: &StepIn) -> (u8, u16) {
         let dt = s.dt;
+        self.g0 = s.g0;
         let gyro = [s.gyro[0] * D2R, s.gyro[1] * D2R, s.gyro[2] * D2R];
         for i in 0..3 {
             self.bias[i] += s.dbias[i] * D2R;
@@ -449,13 +457,14 @@ impl Mekf {
         }
         // Policy: the paper's switching, the turn rate, the dwell.
         let dec = self.switching.classify(&s.accel, s.g0);
-        let bs = self.bias_sigma();
-        let bsmax = bs[0].max(bs[1]).max(bs[2]);
+        // Before the first standstill any steady rate may be the bias: the
+        // first rest after power-on initialises it, whatever its size.
+        let bs = if self.bias_known { self.bias_sigma() } else { [f64::INFINITY; 3] };
         let rest = if s.suspect {
             self.rest.reset();
             None
         } else {
-            Some(self.rest.push(&gyro, &s.accel, dt.max(1e-6), s.g0, &self.bias, bsmax))
+            Some(self.rest.push(&gyro, &s.accel, dt.max(1e-6), s.g0, &self.bias, bs))
         };
         let at_rest = rest.is_some_and(|r| r.rest);
         let turn = norm(&w) > self.p.turn_rate;
@@ -512,12 +521,18 @@ impl Mekf {
         // The speed is taken when the signal becomes steady: a velocity that
         // grows while the unit is still is the tilt's error, not a cruise.
         if !still {
+            if self.still_speed.is_some() {
+                self.after_gap = false;
+            }
             self.still_speed = None;
         } else if self.still_speed.is_none() {
             let sv = (self.cov[VE][VE] + self.cov[VE + 1][VE + 1] + self.cov[VE + 2][VE + 2]).max(0.0).sqrt();
             self.still_speed = Some((norm(&self.v), sv));
         }
-        let cruising = self.still_speed.is_some_and(|(v, sv)| v > CRUISE_SPEED.max(3.0 * sv));
+        // After a gap the velocity the filter holds is a guess (the unit may
+        // have been re-mounted or stopped meanwhile): the first still period
+        // is a standstill.
+        let cruising = !self.after_gap && self.still_speed.is_some_and(|(v, sv)| v > CRUISE_SPEED.max(3.0 * sv));
         let at_rest = still && !cruising;
         // The paper's policy: what takes the accelerometer for gravity (the
         // low-passed tilt and the bounded velocity of a unit that is not a
@@ -671,6 +686,21 @@ impl Mekf {
         [self.bias[0] / D2R, self.bias[1] / D2R, self.bias[2] / D2R]
     }
 
+    /// The propagation of `propagate` without process noise, over the
+    /// samples accumulated so far (for tests).
+    #[cfg(test)]
+    fn propagate_noiseless(&mut self) {
+        let a = self.acc.clone();
+        let saved = (self.p.q_gyro, self.p.q_bias, self.p.q_accel, self.p.q_scale, self.p.gyro_scale);
+        self.p.q_gyro = 0.0;
+        self.p.q_bias = 0.0;
+        self.p.q_accel = 0.0;
+        self.p.q_scale = 0.0;
+        self.p.gyro_scale = 0.0;
+        self.propagate(&a);
+        (self.p.q_gyro, self.p.q_bias, self.p.q_accel, self.p.q_scale, self.p.gyro_scale) = saved;
+    }
+
     /// `P = Φ P Φ^T + Q` with `Φ = [[I, A, 0, 0], [0, I, 0, 0], [B, D, I, 0], [0, 0, 0, 1]]`,
     /// `A = -Σ C dt`, `B = -[Σ C f dt ×]`, `D ≈ B A / 2`.
     fn propagate(&mut self, a: &Accum) {
@@ -821,41 +851,43 @@ impl Mekf {
     /// rear axle) or, for a unit that is not a vehicle, a bounded velocity.
     /// Returns (fused any, gated any).
     fn velocity_updates(&mut self, omega: &[f64; 3], learn: bool, gate: f64) -> (bool, bool) {
-        let (axes, var): (&[usize], f64) = if self.vehicle { (&[1, 2], self.p.nhc_var) } else { (&[0, 1, 2], self.p.free_var) };
         let gain = Gain { tilt: true, bias: learn };
         let mut fused = false;
         let mut gated = false;
+        let mut note = |u: Upd| match u {
+            Upd::Fused => fused = true,
+            Upd::Gated => gated = true,
+            Upd::Skipped => {}
+        };
+        let (axes, var): (&[usize], f64) = if self.vehicle { (&[1, 2], self.p.nhc_var) } else { (&[0, 1, 2], self.p.free_var) };
         if !self.vehicle {
-            if let Some(f) = self.f_lp {
-                let fnm = norm(&f);
-                if fnm > 0.3 {
-                    // u = -e_z + (dθ_y, -dθ_x, 0)
-                    let mut h = [0.0; N];
-                    h[TH + 1] = 1.0;
-                    match self.update(&h, f[0] / fnm, self.p.lp_tilt_var, gain, gate) {
-                        Upd::Fused => fused = true,
-                        Upd::Gated => gated = true,
-                        Upd::Skipped => {}
-                    }
-                    let mut h = [0.0; N];
-                    h[TH] = -1.0;
-                    match self.update(&h, f[1] / fnm, self.p.lp_tilt_var, gain, gate) {
-                        Upd::Fused => fused = true,
-                        Upd::Gated => gated = true,
-                        Upd::Skipped => {}
-                    }
-                }
+            for u in self.gravity_lp_update(self.p.lp_tilt_var, gain, gate) {
+                note(u);
             }
         }
         for &i in axes {
             let (nu, h) = self.body_velocity_row(i, omega);
-            match self.update(&h, -nu, var, gain, gate) {
-                Upd::Fused => fused = true,
-                Upd::Gated => gated = true,
-                Upd::Skipped => {}
-            }
+            let u = self.update(&h, -nu, var, gain, gate);
+            note(u);
         }
         (fused, gated)
+    }
+
+    /// The navigation-frame low-passed specific force as gravity (tilt only).
+    fn gravity_lp_update(&mut self, var: f64, gain: Gain, gate: f64) -> [Upd; 2] {
+        let Some(f) = self.f_lp else { return [Upd::Skipped; 2] };
+        let fnm = norm(&f);
+        if fnm < 0.3 {
+            return [Upd::Skipped; 2];
+        }
+        // u = -e_z + (dθ_y, -dθ_x, 0)
+        let mut h = [0.0; N];
+        h[TH + 1] = 1.0;
+        let a = self.update(&h, f[0] / fnm, var, gain, gate);
+        let mut h = [0.0; N];
+        h[TH] = -1.0;
+        let b = self.update(&h, f[1] / fnm, var, gain, gate);
+        [a, b]
     }
 
     /// Body-axis `i` velocity at the rear axle and its row of H.
@@ -970,4 +1002,135 @@ impl Mekf {
 #[inline]
 fn norm(v: &[f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn filter() -> Mekf {
+        let p = crate::estimator::mekf_params(&crate::config::Config::default());
+        let sw = Switching::new(&crate::config::SwitchingConfig::default(), 200.0);
+        let mut m = Mekf::new(MekfParams { lever: [0.9, 0.1, -0.3], speed_aided: true, ..p }, sw);
+        m.start(&[0.1, -0.2, -0.97], &[0.2, 0.05, 0.4], [0.01, -0.02, 0.03], [0.01; 3], true);
+        m.q = quat::from_euler(0.2, -0.3, 1.1);
+        m.c = quat::to_matrix(&m.q);
+        m.v = [8.0, -3.0, 0.5];
+        m.scale = 0.02;
+        m
+    }
+
+    /// Apply an error-state step the way `inject` does, on a copy.
+    fn perturbed(m: &Mekf, k: usize, eps: f64) -> Mekf {
+        let mut c = m.clone();
+        c.dx = [0.0; N];
+        c.dx[k] = eps;
+        c.inject();
+        c
+    }
+
+    /// Every measurement row of H against finite differences of its
+    /// prediction: `z_pred(x ⊕ dx) - z_pred(x) = H dx`.
+    #[test]
+    fn measurement_rows_match_finite_differences() {
+        let m = filter();
+        // the rate is the measured gyro less the bias the state holds
+        let gyro = [0.05, -0.1, 0.3];
+        let omega = |f: &Mekf| [gyro[0] - f.bias[0], gyro[1] - f.bias[1], gyro[2] - f.bias[2]];
+        let eps = 1e-6;
+        for axis in 0..3 {
+            let (v0, h) = m.body_velocity_row(axis, &omega(&m));
+            for k in 0..N {
+                let p = perturbed(&m, k, eps);
+                let (v1, _) = p.body_velocity_row(axis, &omega(&p));
+                let fd = (v1 - v0) / eps;
+                assert!((fd - h[k]).abs() < 1e-4 * (1.0 + h[k].abs()), "velocity axis {axis} state {k}: {fd} vs {}", h[k]);
+            }
+        }
+        // heading: the prediction is the heading of C m (the field fixed in NED)
+        let mb = [0.1, 0.3, 0.35];
+        let psi = |f: &Mekf| {
+            let n = rotate(&f.c, &mb);
+            n[1].atan2(n[0])
+        };
+        let n = rotate(&m.c, &mb);
+        let h2 = n[0] * n[0] + n[1] * n[1];
+        let h = [n[0] * n[2] / h2, n[1] * n[2] / h2, -1.0];
+        for k in 0..3 {
+            // the true state is est ⊕ dx: the heading computed with the estimate
+            // differs from the truth's by -(that change)
+            let fd = -(psi(&perturbed(&m, k, eps)) - psi(&m)) / eps;
+            assert!((fd - h[k]).abs() < 1e-4, "heading state {k}: {fd} vs {}", h[k]);
+        }
+        // gravity: u = C f/|f| for the f of a level-consistent truth
+        let f_true = rotate_t(&m.c, &[0.0, 0.0, -1.0]);
+        for k in 0..3 {
+            let t = perturbed(&m, k, eps);
+            // f is what the true attitude sees; the estimate m rotates it
+            let f = rotate_t(&t.c, &[0.0, 0.0, -1.0]);
+            let u = rotate(&m.c, &f);
+            let want = match k {
+                0 => [0.0, -eps, 0.0],
+                1 => [eps, 0.0, 0.0],
+                _ => [0.0, 0.0, 0.0],
+            };
+            assert!((u[0] - want[0]).abs() < 1e-9 && (u[1] - want[1]).abs() < 1e-9, "gravity state {k}: {u:?}");
+            let _ = f_true;
+        }
+    }
+
+    /// The accumulated transition against propagating the state difference.
+    #[test]
+    fn transition_matches_propagating_a_perturbed_state() {
+        let mut a = filter();
+        let eps = 1e-6;
+        let w = [0.2, -0.1, 0.4];
+        let f = [0.1, 0.05, -0.98];
+        let dt = 0.005;
+        let steps = 8;
+        let run = |m: &mut Mekf| {
+            for _ in 0..steps {
+                let s = StepIn {
+                    dt,
+                    t: 1.0,
+                    gyro: w.map(|x| x / D2R),
+                    accel: f,
+                    magn: [0.0; 3],
+                    temp: 25.0,
+                    g0: 1.0,
+                    dbias: [0.0; 3],
+                    suspect: false,
+                };
+                // propagate without running a tick
+                let acc_t = m.acc.t;
+                m.p.tick_s = 1e9;
+                m.step(&s);
+                let _ = acc_t;
+            }
+        };
+        let base = a.clone();
+        run(&mut a);
+        // Φ from the accumulators, applied to a covariance with one unit entry
+        for k in 0..N {
+            let mut b = perturbed(&base, k, eps);
+            run(&mut b);
+            // the difference of the end states, in error coordinates
+            let dq = quat::mul(&b.q, &[a.q[0], -a.q[1], -a.q[2], -a.q[3]]);
+            let dth = [2.0 * dq[1] / eps, 2.0 * dq[2] / eps, 2.0 * dq[3] / eps];
+            let db: Vec<f64> = (0..3).map(|i| (b.bias[i] - a.bias[i]) / eps).collect();
+            let dv: Vec<f64> = (0..3).map(|i| (b.v[i] - a.v[i]) / eps).collect();
+            // Φ column k from the accumulated blocks
+            let mut p = [[0.0; N]; N];
+            p[k][k] = 1.0;
+            let mut m = a.clone();
+            m.cov = p;
+            m.propagate_noiseless();
+            // P' = Φ e_k e_k^T Φ^T: column k of Φ is P'[.][k] / Φ[k][k]
+            let col: Vec<f64> = (0..N).map(|i| m.cov[i][k]).collect();
+            let want: Vec<f64> = dth.iter().chain(db.iter()).chain(dv.iter()).copied().collect();
+            for i in 0..9 {
+                assert!((col[i] - want[i]).abs() < 2e-3 * (1.0 + want[i].abs()), "Φ[{i}][{k}]: {} vs {}", col[i], want[i]);
+            }
+        }
+    }
 }

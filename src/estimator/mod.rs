@@ -216,6 +216,7 @@ pub fn mekf_params(cfg: &Config) -> MekfParams {
             accel_dev: r.accel_dev_g,
             band: r.band,
             rate: r.rate_dps * D2R,
+            drift: r.drift_g,
         },
         g0_window_s: cfg.estimator.g0_window_s,
         speed_aided: cfg.speed.enabled(),
@@ -442,7 +443,12 @@ impl Estimator {
             }
             Filter::Mekf(m) => {
                 if resync {
-                    m.resync((5.0 * D2R).powi(2), 4.0);
+                    // The longer the gap, the less is known: over it the unit may have
+                    // turned (30 deg/s) and changed speed (3 m/s^2); a counter restart
+                    // is a gap of unknown length. At most a quarter turn.
+                    let gap = if s.steps == 0 { 10.0 } else { s.steps as f64 * self.period };
+                    let att = (5.0 * D2R + 30.0 * D2R * gap).min(90.0 * D2R);
+                    m.resync(att * att, 4.0 + (3.0 * gap).powi(2));
                 }
                 let (mode, ffl) = m.step(&inp);
                 let a = accel;

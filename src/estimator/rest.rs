@@ -13,8 +13,13 @@
 //! - rest needs the gyro deviation under `gyro_dev_dps`, the accelerometer
 //!   deviation under `accel_dev_g`, the low-passed |f| within `band` of g0
 //!   (a steady 0.2 g acceleration is 2 % off), and the low-passed,
-//!   bias-corrected rate under `rate_dps` plus three bias sigmas (a steady turn
-//!   is steady too; before the bias is known this test is necessarily loose);
+//!   bias-corrected rate under `rate_dps` plus three bias sigmas on every
+//!   axis (a steady turn is steady too; before the bias is known this test is
+//!   necessarily loose);
+//! - the low-passed specific force must not move by more than `drift_g`
+//!   from where it was when the conditions began: a car that creeps away
+//!   from a stop (or reverses) at a smooth, vibration-free 0.09 g is not
+//!   standing any more, although each sample on its own looks quiet;
 //! - all of it for `min_s` seconds without a break.
 //!
 //! No allocation, O(1) per sample.
@@ -28,6 +33,7 @@ pub struct RestParams {
     pub accel_dev: f64,
     pub band: f64,
     pub rate: f64,
+    pub drift: f64,
 }
 
 #[derive(Clone, Debug)]
@@ -40,6 +46,8 @@ pub struct RestDetector {
     accel_var: f64,
     /// Seconds the conditions have held without a break.
     held: f64,
+    /// The low-passed specific force when they began.
+    anchor: [f64; 3],
 }
 
 /// What the detector says after one sample.
@@ -60,7 +68,16 @@ pub struct RestState {
 impl RestDetector {
     /// `gyro_dev` and `rate` in the gyro input's unit (rad/s in the estimator).
     pub fn new(p: RestParams) -> RestDetector {
-        RestDetector { p, started: false, gyro_lp: [0.0; 3], accel_lp: [0.0; 3], gyro_var: 0.0, accel_var: 0.0, held: 0.0 }
+        RestDetector {
+            p,
+            started: false,
+            gyro_lp: [0.0; 3],
+            accel_lp: [0.0; 3],
+            gyro_var: 0.0,
+            accel_var: 0.0,
+            held: 0.0,
+            anchor: [0.0; 3],
+        }
     }
 
     /// Forget everything (after a resync).
@@ -75,8 +92,8 @@ impl RestDetector {
     }
 
     /// One sample: gyro, specific force (g), time step (s), g0 (g), the
-    /// current bias estimate and its largest 1-sigma (gyro unit).
-    pub fn push(&mut self, gyro: &[f64; 3], accel: &[f64; 3], dt: f64, g0: f64, bias: &[f64; 3], bias_sigma: f64) -> RestState {
+    /// current bias estimate and its 1-sigma per axis (gyro unit).
+    pub fn push(&mut self, gyro: &[f64; 3], accel: &[f64; 3], dt: f64, g0: f64, bias: &[f64; 3], bias_sigma: [f64; 3]) -> RestState {
         if !self.started {
             self.gyro_lp = *gyro;
             self.accel_lp = *accel;
@@ -99,14 +116,18 @@ impl RestDetector {
         self.gyro_var += (dg - self.gyro_var) * a;
         self.accel_var += (da - self.accel_var) * a;
         let amag = (self.accel_lp[0] * self.accel_lp[0] + self.accel_lp[1] * self.accel_lp[1] + self.accel_lp[2] * self.accel_lp[2]).sqrt();
-        let w = [self.gyro_lp[0] - bias[0], self.gyro_lp[1] - bias[1], self.gyro_lp[2] - bias[2]];
-        let rate = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+        // per axis: a bias known on one axis and not on another is common
+        let turning = (0..3).any(|i| (self.gyro_lp[i] - bias[i]).abs() > self.p.rate + 3.0 * bias_sigma[i]);
         let gd = self.p.gyro_dev;
         let ad = self.p.accel_dev;
-        let quiet = self.gyro_var < gd * gd
-            && self.accel_var < ad * ad
-            && (amag / g0 - 1.0).abs() < self.p.band
-            && rate < self.p.rate + 3.0 * bias_sigma;
+        let mut quiet = self.gyro_var < gd * gd && self.accel_var < ad * ad && (amag / g0 - 1.0).abs() < self.p.band && !turning;
+        if quiet && self.held == 0.0 {
+            self.anchor = self.accel_lp;
+        }
+        if quiet {
+            let d = [self.accel_lp[0] - self.anchor[0], self.accel_lp[1] - self.anchor[1], self.accel_lp[2] - self.anchor[2]];
+            quiet = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < self.p.drift * self.p.drift;
+        }
         self.held = if quiet { self.held + dt } else { 0.0 };
         RestState {
             rest: self.held >= self.p.min_s,
@@ -123,7 +144,7 @@ mod tests {
     use super::*;
 
     fn params() -> RestParams {
-        RestParams { tau_s: 0.5, min_s: 1.0, gyro_dev: 0.01, accel_dev: 0.02, band: 0.01, rate: 0.02 }
+        RestParams { tau_s: 0.5, min_s: 1.0, gyro_dev: 0.01, accel_dev: 0.02, band: 0.01, rate: 0.02, drift: 0.01 }
     }
 
     /// Deterministic pseudo-noise in [-1, 1].
@@ -143,14 +164,14 @@ mod tests {
             let g = [bias[0] + 0.003 * noise(3 * k), bias[1] + 0.003 * noise(3 * k + 1), bias[2] + 0.003 * noise(3 * k + 2)];
             let a = [0.005 * noise(7 * k), 0.005 * noise(7 * k + 1), -1.0 + 0.005 * noise(7 * k + 2)];
             // the bias is not known yet: sigma 0.1 rad/s
-            st = Some(d.push(&g, &a, dt, 1.0, &[0.0; 3], 0.1));
+            st = Some(d.push(&g, &a, dt, 1.0, &[0.0; 3], [0.1; 3]));
         }
         assert!(st.unwrap().rest, "a resting unit with a large bias is at rest");
         // driving: road vibration 0.1 g
         let mut moving = false;
         for k in 0..200u64 {
             let a = [0.1 * noise(5 * k), 0.1 * noise(5 * k + 1), -1.0 + 0.1 * noise(5 * k + 2)];
-            moving |= !d.push(&bias, &a, dt, 1.0, &bias, 0.001).rest;
+            moving |= !d.push(&bias, &a, dt, 1.0, &bias, [0.001; 3]).rest;
         }
         assert!(moving);
         assert_eq!(d.held(), 0.0);
@@ -163,23 +184,44 @@ mod tests {
         let mut d = RestDetector::new(params());
         let mut any = false;
         for _ in 0..600 {
-            any |= d.push(&[0.0; 3], &[0.2, 0.0, -1.0], dt, 1.0, &[0.0; 3], 0.001).rest;
+            any |= d.push(&[0.0; 3], &[0.2, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.001; 3]).rest;
         }
         assert!(!any, "a steady 0.2 g acceleration was taken for rest");
         // a steady 3 deg/s turn with the bias known to 0.001 rad/s
         let mut d = RestDetector::new(params());
         let mut any = false;
         for _ in 0..600 {
-            any |= d.push(&[0.0, 0.0, 0.052], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], 0.001).rest;
+            any |= d.push(&[0.0, 0.0, 0.052], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.001; 3]).rest;
         }
         assert!(!any, "a steady turn was taken for rest");
         // the same turn rate as an unknown bias is rest
         let mut d = RestDetector::new(params());
         let mut last = false;
         for _ in 0..600 {
-            last = d.push(&[0.0, 0.0, 0.052], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], 0.1).rest;
+            last = d.push(&[0.0, 0.0, 0.052], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.1; 3]).rest;
         }
         assert!(last);
+    }
+
+    #[test]
+    fn creeping_away_from_a_stop_ends_the_rest() {
+        // Standing, then a smooth reverse at 0.09 g with no vibration: |f|
+        // changes by 0.4 %, inside the band, but f turns by 5 deg.
+        let mut d = RestDetector::new(params());
+        let dt = 0.005;
+        for _ in 0..600 {
+            assert!(!d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.001; 3]).rest || d.held() > 0.0);
+        }
+        assert!(d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.001; 3]).rest);
+        let mut ended = None;
+        for k in 0..400 {
+            let a = -0.09 * (k as f64 / 100.0).min(1.0);
+            if !d.push(&[0.0; 3], &[a, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.001; 3]).rest && ended.is_none() {
+                ended = Some(k);
+            }
+        }
+        let k = ended.expect("still at rest while reversing");
+        assert!(k < 150, "the rest ended only after {k} samples");
     }
 
     #[test]
@@ -188,7 +230,7 @@ mod tests {
         let dt = 0.01;
         let mut first = None;
         for k in 0..300 {
-            let s = d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], 0.0);
+            let s = d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.0; 3]);
             if s.rest && first.is_none() {
                 first = Some(k);
             }
@@ -197,7 +239,7 @@ mod tests {
         let k = first.expect("rest detected");
         assert!(k >= 100, "rest after {k} samples, before min_s");
         // one jolt restarts the clock
-        d.push(&[0.5, 0.0, 0.0], &[0.3, 0.0, -1.0], dt, 1.0, &[0.0; 3], 0.0);
-        assert!(!d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], 0.0).rest);
+        d.push(&[0.5, 0.0, 0.0], &[0.3, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.0; 3]);
+        assert!(!d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.0; 3]).rest);
     }
 }

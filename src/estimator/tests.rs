@@ -345,29 +345,60 @@ fn mekf_a_turn_at_speed_is_not_roll() {
 
 #[test]
 fn mekf_relevels_when_a_standstill_disagrees_for_long() {
-    // After learning, the accelerometer reports a 6 deg tilt the gyro never
-    // saw (the unit re-mounted while off the bus): refused at first, then a
-    // flagged re-level, never a silent lock-out.
-    let mut m = Motion::new(204.8, [0.1, -0.1, 0.2], 0.0, 0.0, 0.0);
+    // A turn-on bias of 15 deg/s on x, five times the prior sigma: the first
+    // standstill's zero-rate update is refused by the gate at first, then a
+    // flagged re-level takes it, never a silent lock-out.
+    let bias = [15.0, -2.0, 1.0];
+    let mut m = Motion::new(204.8, bias, 1.0, -2.0, 0.0);
     let mut e = mekf("");
-    let th = 6f64.to_radians();
     let mut est = Estimate::default();
     let mut relevel_at = None;
-    for k in 0..(204.8 * 40.0) as u32 {
+    let mut gated = false;
+    for k in 0..(204.8 * 15.0) as u32 {
         let t = k as f64 / 204.8;
-        let mut s = m.step([0.0; 3], [0.0; 3]);
-        if t >= 20.0 {
-            s.accel = [th.sin(), 0.0, -th.cos()];
-        }
-        est = e.step(&s);
+        est = e.step(&m.step([0.0; 3], [0.0; 3]));
+        gated |= est.flags & flags::GATED != 0;
         if est.flags & flags::RELEVEL != 0 && relevel_at.is_none() {
             relevel_at = Some(t);
         }
     }
+    assert!(gated, "the bias was taken at once");
     let t = relevel_at.expect("no re-level flagged");
-    assert!(t > 20.0 && t < 25.0, "re-levelled at {t}");
-    assert!((est.pitch - 6.0).abs() < 0.2, "pitch {}", est.pitch);
+    assert!(t < 6.0, "re-levelled at {t}");
+    for i in 0..3 {
+        assert!((est.bias[i] - bias[i]).abs() < 0.02, "{:?}", est.bias);
+    }
+    let tr = m.euler();
+    assert!(angle_err(est.roll, tr[0]) < 0.1 && angle_err(est.pitch, tr[1]) < 0.1, "{est:?}");
     assert_eq!(e.mekf_counters().unwrap().relevels, 1);
+}
+
+#[test]
+fn mekf_a_counter_gap_widens_the_attitude_with_its_length() {
+    // The bus goes silent for 2 s and the unit comes back re-mounted 20 deg
+    // pitched: the gyro never saw the turn. After the gap the attitude is
+    // open enough that the standstill's gravity is taken at once.
+    let mut m = Motion::new(204.8, [0.1, -0.1, 0.2], 0.0, 0.0, 0.0);
+    let mut e = mekf("");
+    let th = 20f64.to_radians();
+    let mut est = Estimate::default();
+    for k in 0..(204.8 * 30.0) as u32 {
+        let t = k as f64 / 204.8;
+        let mut s = m.step([0.0; 3], [0.0; 3]);
+        if (20.0..22.0).contains(&t) {
+            continue; // silent bus
+        }
+        if t >= 22.0 {
+            s.accel = [th.sin(), 0.0, -th.cos()];
+            s.steps = if (22.0..22.0 + 1.0 / 204.8).contains(&t) { 2 * 205 } else { 1 };
+        }
+        est = e.step(&s);
+        if (22.0..22.0 + 1.0 / 204.8).contains(&t) {
+            assert!(est.flags & flags::RESYNC != 0);
+        }
+    }
+    assert!((est.pitch - 20.0).abs() < 0.2, "pitch {}", est.pitch);
+    assert!(est.flags & flags::STANDSTILL != 0);
 }
 
 #[test]
