@@ -823,6 +823,47 @@ mod tests {
     }
 
     #[test]
+    fn the_annotated_example_shows_the_defaults() {
+        // config/gyrocomp.toml documents every key with its default value,
+        // except the values marked "example" there.
+        let text = include_str!("../config/gyrocomp.toml");
+        let mut c = Config::parse(text, "config/gyrocomp.toml").unwrap();
+        let d = Config::default();
+        assert_eq!(c.can.interface, "vcan0");
+        c.can = d.can.clone();
+        assert_eq!(c.thermal.p1, [0.0020, 0.0044, 0.0192]);
+        c.thermal.p1 = d.thermal.p1;
+        c.thermal.p2 = d.thermal.p2;
+        assert_eq!(c, d);
+        for section in [
+            "input",
+            "input.ids",
+            "can",
+            "estimator",
+            "ekf",
+            "switching",
+            "thermal",
+            "mekf",
+            "rest",
+            "output",
+            "daemon",
+            "mounting",
+            "speed",
+        ] {
+            assert!(text.contains(&format!("\n[{section}]\n")), "section [{section}] is not documented");
+        }
+    }
+
+    #[test]
+    fn use_magnetometer_and_vehicle_take_auto_or_a_bool_and_robust_is_the_default_filter() {
+        let c = Config::parse("[estimator]\nuse_magnetometer = \"auto\"\n[mekf]\nvehicle = false", "t").unwrap();
+        assert_eq!((c.estimator.use_magnetometer, c.mekf.vehicle), (AutoBool::Auto, AutoBool::Bool(false)));
+        let c = Config::parse("[estimator]\nuse_magnetometer = true\nmode = \"robust\"", "t").unwrap();
+        assert_eq!((c.estimator.use_magnetometer, c.estimator.mode), (AutoBool::Bool(true), Mode::Mekf));
+        assert_eq!(Config::parse(&c.to_toml(), "x").unwrap(), c);
+    }
+
+    #[test]
     fn refuses_unknown_keys() {
         let e = bad("[switching]\ninnr = [0.9, 1.1]");
         assert!(e.contains("innr"), "{e}");

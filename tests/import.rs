@@ -4,7 +4,7 @@
 mod common;
 use common::bin;
 use gyrocomp::adis::Sample;
-use gyrocomp::config::Config;
+use gyrocomp::config::{AutoBool, Config};
 use gyrocomp::reference::decode;
 use gyrocomp::reference::score::sample_times;
 use std::io::Write;
@@ -119,7 +119,8 @@ fn csv_round_trip_through_import_and_replay() {
     assert!(err.contains("400 samples") && err.contains("1 counter gaps (20 samples)"), "{err}");
     let (cfg, samples) = replayed(&log, &snip);
     assert!((cfg.profile().rate_hz - 100.0).abs() < 1e-9, "rate estimated from t: {}", cfg.profile().rate_hz);
-    assert!(cfg.estimator.use_magnetometer, "the recording has a magnetometer");
+    assert_eq!(cfg.estimator.use_magnetometer, AutoBool::Auto, "the recording has a magnetometer");
+    assert!(cfg.thermal.enabled, "the recording has a temperature");
     check_round_trip(&r, &cfg, &samples, true, true);
     // Auto scales: the finest two-digit LSB with headroom (250 deg/s * 1.25 / 32767 -> 0.0096).
     assert_eq!(cfg.profile().gyro_lsb, 0.0096);
@@ -158,13 +159,13 @@ fn no_magnetometer_or_temperature_turns_them_off_in_the_snippet() {
         ok(&import(&["--csv", p(c), "--out", p(&log), "--config-out", p(&snip)]));
         let text = std::fs::read_to_string(&snip).unwrap();
         let (cfg, samples) = replayed(&log, &snip);
-        assert!(!cfg.estimator.use_magnetometer, "{text}");
-        assert!(cfg.thermal.p1 == [0.0; 3] && cfg.thermal.p2 == [0.0; 3] && !cfg.thermal.learn, "{text}");
+        assert_eq!(cfg.estimator.use_magnetometer, AutoBool::Bool(false), "{text}");
+        assert!(!cfg.thermal.enabled, "{text}");
         check_round_trip(&r, &cfg, &samples, false, false);
         // The snippet laid over a config with a thermal curve and the magnetometer on turns both off.
         let base = Config::parse("[thermal]\np1 = [0.01, 0.02, 0.03]\np2 = [0.1, 0.1, 0.1]\nlearn = true\n", "base").unwrap();
         let merged = gyrocomp::import::overlay(&base, &text, "snippet").unwrap();
-        assert!(merged.thermal.p1 == [0.0; 3] && !merged.thermal.learn && !merged.estimator.use_magnetometer);
+        assert!(!merged.thermal.enabled && merged.estimator.use_magnetometer == AutoBool::Bool(false));
         assert_eq!(merged.profile(), cfg.profile());
     }
 }

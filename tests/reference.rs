@@ -102,7 +102,7 @@ fn a_known_mounting_tilt_is_recovered_and_scores_match_the_truth() {
     assert_eq!(a.window.source, "first rest phase");
     assert!((a.roll_deg - MOUNT[0]).abs() < 0.05 && (a.pitch_deg - MOUNT[1]).abs() < 0.05, "mount recovered as {a:?}");
     // Ours against the reference equals ours against the truth.
-    let (att, _) = run_ours(&samples, &cfg);
+    let (att, _, _) = run_ours(&samples, &cfg);
     let want = truth_scores(&att, &truth, 10.0);
     let ours = &ev.results[0].scores;
     eprintln!(

@@ -20,7 +20,7 @@
 //! - `--config-out` writes the `[input]` section (profile, rate, every LSB,
 //!   the input IDs) and what the recording implies: no magnetometer column
 //!   -> `[estimator] use_magnetometer = false`; no temperature column -> the
-//!   thermal curve off (`[thermal]` all zero, no learning). Replaying the log
+//!   thermal curve off (`[thermal] enabled = false`). Replaying the log
 //!   with it gives the CSV's values within half an LSB.
 //! - `--can CAR.log` merges another candump log into the output by
 //!   timestamp (its lines copied as they are), so one log carries the IMU and
@@ -176,7 +176,7 @@ pub fn snippet(src: &str, sc: &Scales, tm: &Timing, has_magn: bool, has_temp: bo
     }
     if !has_temp {
         s += "[thermal]\n# the recording has no temperature: the thermal curve is off\n";
-        s += "p1 = [0.0, 0.0, 0.0]\np2 = [0.0, 0.0, 0.0]\norder = 1\np3 = [0.0, 0.0, 0.0]\np4 = [0.0, 0.0, 0.0]\nlearn = false\n";
+        s += "enabled = false\n";
     }
     s
 }
