@@ -522,7 +522,32 @@ impl Config {
     pub fn load(path: &Path) -> Result<Config, ConfigError> {
         let p = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io { path: p.clone(), source })?;
-        Config::parse(&text, &p)
+        let mut cfg = Config::parse(&text, &p)?;
+        // `speed.dbc` relative to the config file's directory
+        if cfg.speed.enabled() && Path::new(&cfg.speed.dbc).is_relative() {
+            if let Some(dir) = path.parent() {
+                cfg.speed.dbc = dir.join(&cfg.speed.dbc).display().to_string();
+            }
+        }
+        cfg.check_speed_source().map_err(|(key, msg)| ConfigError::Invalid { path: p, key, msg })?;
+        Ok(cfg)
+    }
+
+    /// Load the DBC of `[speed]` (when configured) and check that its
+    /// message is not one of the IMU's or gyrocomp's own frames.
+    pub fn check_speed_source(&self) -> Result<(), (String, String)> {
+        let Some(dec) = crate::speed::load(self).map_err(|e| ("speed.dbc".to_string(), e.to_string()))? else {
+            return Ok(());
+        };
+        let (id, ext) = dec.id();
+        let o = &self.output;
+        if !ext && (self.input.ids.all().contains(&id) || [o.rate_id, o.attitude_id, o.bias_id, o.status_id].contains(&id)) {
+            return Err((
+                "speed.message".into(),
+                format!("{} has CAN ID {id:#x}, which is an IMU input or a gyrocomp output ID", dec.message()),
+            ));
+        }
+        Ok(())
     }
 
     /// Parse and validate config text; `origin` names it in errors.

@@ -347,6 +347,16 @@ impl SpeedDecoder {
     }
 }
 
+/// The decoder of a config's `[speed]` (None when it is not configured).
+/// `speed.dbc` is used as it stands: `Config::load` has made it absolute
+/// (relative to the config file's directory).
+pub fn load(cfg: &crate::config::Config) -> Result<Option<SpeedDecoder>, SpeedError> {
+    if !cfg.speed.enabled() {
+        return Ok(None);
+    }
+    SpeedDecoder::from_config(&cfg.speed).map(Some)
+}
+
 fn list<'a>(names: impl Iterator<Item = &'a str>) -> String {
     let v: Vec<&str> = names.collect();
     if v.is_empty() {

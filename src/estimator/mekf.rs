@@ -53,6 +53,10 @@ const D2R: f64 = std::f64::consts::PI / 180.0;
 /// A unit that becomes still at a speed above this (m/s, and above three
 /// sigmas) is cruising smoothly, not standing: no zero-velocity update.
 const CRUISE_SPEED: f64 = 1.0;
+/// Wheel speeds below this (m/s) are a standing car; above `WHEEL_MOVING` a
+/// moving one, whatever the IMU looks like.
+const WHEEL_STANDING: f64 = 0.05;
+const WHEEL_MOVING: f64 = 0.3;
 
 /// Whether the magnetometer is used for heading.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -163,6 +167,8 @@ struct Accum {
     /// The policy held for every sample of the tick.
     quasi: bool,
     rest: bool,
+    /// The rest detector's instantaneous conditions held (not yet `min_s`).
+    quiet: bool,
 }
 
 /// What the updates of one tick did.
@@ -232,8 +238,10 @@ pub struct Mekf {
     /// The last tick's outcome, held until the next tick.
     mode: u8,
     tick_flags: u16,
-    /// The speed measurement for the next tick (m/s), if fresh.
+    /// The latest speed (m/s) while fresh, and whether a frame arrived
+    /// since the last update.
     speed: Option<f64>,
+    speed_new: bool,
     /// Bias and temperature of the last tick that learned the bias.
     pub last_learned: Option<(f64, [f64; 3])>,
     /// A learning point for the thermal slope: (temp, bias deg/s, weight s).
@@ -277,6 +285,7 @@ impl Mekf {
             mode: 2,
             tick_flags: 0,
             speed: None,
+            speed_new: false,
             last_learned: None,
             rest_point: None,
             counters: MekfCounters::default(),
@@ -312,9 +321,10 @@ impl Mekf {
             self.cov[SC][SC] = self.p.init_scale_sigma * self.p.init_scale_sigma;
         }
         self.bias_known = known;
-        self.vehicle = self.p.vehicle != Vehicle::Off;
+        // with the car's own speed it is a vehicle
+        self.vehicle = self.p.vehicle != Vehicle::Off || self.p.speed_aided;
         self.xy_rate2 = 0.0;
-        self.acc = Accum { quasi: true, rest: true, ..Accum::default() };
+        self.acc = Accum { quasi: true, rest: true, quiet: true, ..Accum::default() };
         self.rest.reset();
         self.switching.reset();
         self.dwell = 0.0;
@@ -376,9 +386,12 @@ impl Mekf {
         &self.cov
     }
 
-    /// A fresh wheel speed (m/s) for the next update; None = none / stale.
-    pub fn set_speed(&mut self, v: Option<f64>) {
+    /// The latest wheel speed (m/s) while fresh, None when stale or absent;
+    /// `new` when it arrived since the previous sample (each frame is fused
+    /// once).
+    pub fn set_speed(&mut self, v: Option<f64>, new: bool) {
         self.speed = v;
+        self.speed_new |= new && v.is_some();
     }
 
     fn state_is_finite(&self) -> bool {
@@ -432,7 +445,7 @@ impl Mekf {
             }
             a.t += dt;
             a.turned += norm(&w) * dt;
-            if self.vehicle && self.p.vehicle == Vehicle::Auto {
+            if self.vehicle && self.p.vehicle == Vehicle::Auto && !self.p.speed_aided {
                 self.xy_rate2 += (w[0] * w[0] + w[1] * w[1] - self.xy_rate2) * (dt / 1.0).min(1.0);
                 // a car body never tilts past 45 deg either
                 if self.xy_rate2 > self.p.handheld_rate * self.p.handheld_rate || self.c[2][2] < std::f64::consts::FRAC_1_SQRT_2 {
@@ -481,6 +494,7 @@ impl Mekf {
         a.suspect |= s.suspect;
         a.quasi &= at_rest || self.dwell >= self.p.dwell_s;
         a.rest &= at_rest;
+        a.quiet &= rest.is_some_and(|r| r.quiet);
         if rest.is_some() {
             self.last_rest = rest;
         }
@@ -503,7 +517,7 @@ impl Mekf {
     /// measurement updates the policy allows.
     fn tick(&mut self, temp: f64) {
         let a = std::mem::take(&mut self.acc);
-        self.acc = Accum { quasi: true, rest: true, ..Accum::default() };
+        self.acc = Accum { quasi: true, rest: true, quiet: true, ..Accum::default() };
         let t = a.t;
         if t <= 0.0 || a.n == 0 {
             return;
@@ -514,7 +528,12 @@ impl Mekf {
         let mut o = Outcome::default();
         self.dx = [0.0; N];
         let omega = [a.omega[0] / n, a.omega[1] / n, a.omega[2] / n];
-        let still = a.rest && !a.suspect;
+        // The wheels say standing (0) or moving; a quiet IMU with standing
+        // wheels is a standstill without waiting for the detector's time.
+        let wheel = if self.p.speed_aided { self.speed } else { None };
+        let wheel_standing = wheel.is_some_and(|v| v.abs() < WHEEL_STANDING);
+        let wheel_moving = wheel.is_some_and(|v| v.abs() > WHEEL_MOVING);
+        let still = (a.rest || (wheel_standing && a.quiet)) && !a.suspect && !wheel_moving;
         // A steady signal at a speed the filter is sure of is a smooth
         // cruise, not a standstill: the gyro still reads the bias on a
         // straight and gravity is still gravity, but the velocity is not zero.
@@ -532,7 +551,7 @@ impl Mekf {
         // After a gap the velocity the filter holds is a guess (the unit may
         // have been re-mounted or stopped meanwhile): the first still period
         // is a standstill.
-        let cruising = !self.after_gap && self.still_speed.is_some_and(|(v, sv)| v > CRUISE_SPEED.max(3.0 * sv));
+        let cruising = !wheel_standing && !self.after_gap && self.still_speed.is_some_and(|(v, sv)| v > CRUISE_SPEED.max(3.0 * sv));
         let at_rest = still && !cruising;
         // The paper's policy: what takes the accelerometer for gravity (the
         // low-passed tilt and the bounded velocity of a unit that is not a
@@ -579,15 +598,15 @@ impl Mekf {
                 }
             }
         }
-        if self.p.speed_aided && !a.suspect {
-            if let Some(vw) = self.speed {
-                fl |= flags::SPEED_AIDED;
-                self.counters.speed_used_s += t;
-                if self.speed_update(vw, &omega, learn, self.p.gate) == Upd::Fused {
-                    o.fused = true;
-                }
+        if let Some(vw) = wheel {
+            fl |= flags::SPEED_AIDED;
+            self.counters.speed_used_s += t;
+            // each frame once; at a standstill the zero-velocity update says it
+            if self.speed_new && !at_rest && !a.suspect && self.speed_update(vw, &omega, learn, self.p.gate) == Upd::Fused {
+                o.fused = true;
             }
         }
+        self.speed_new = false;
         if self.mag_on == Some(true) && !a.suspect {
             let m = [a.magn[0] / n, a.magn[1] / n, a.magn[2] / n];
             match self.heading_update(&m, at_rest, learn, self.p.gate) {

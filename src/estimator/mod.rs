@@ -348,11 +348,12 @@ impl Estimator {
         }
     }
 
-    /// A fresh vehicle speed (m/s) for the default filter, None when there
-    /// is none (not configured, stale or implausible).
-    pub fn set_speed(&mut self, v: Option<f64>) {
+    /// The vehicle's speed (m/s) for the default filter: the latest one
+    /// while it is fresh, None when there is none (not configured, stale);
+    /// `new` when a frame arrived since the previous sample.
+    pub fn set_speed(&mut self, v: Option<f64>, new: bool) {
         if let Filter::Mekf(m) = &mut self.filter {
-            m.set_speed(v);
+            m.set_speed(v, new);
         }
     }
 

@@ -55,6 +55,8 @@ pub struct RestDetector {
 pub struct RestState {
     /// At rest (the conditions have held for `min_s`).
     pub rest: bool,
+    /// The conditions hold now (maybe not for `min_s` yet).
+    pub quiet: bool,
     /// Low-passed gyro (same unit as the input).
     pub gyro_lp: [f64; 3],
     /// Low-passed specific force, g.
@@ -131,6 +133,7 @@ impl RestDetector {
         self.held = if quiet { self.held + dt } else { 0.0 };
         RestState {
             rest: self.held >= self.p.min_s,
+            quiet,
             gyro_lp: self.gyro_lp,
             accel_lp: self.accel_lp,
             gyro_var: self.gyro_var,
