@@ -66,7 +66,8 @@ fn log_in_report_and_model_out_model_accepted_back() {
         assert_eq!(f[key].as_array().unwrap().len(), 3);
     }
     assert!(f["rms_after"][2].as_f64().unwrap() <= 0.5 * f["rms_before"][2].as_f64().unwrap());
-    assert!(f["evidence"]["delta_bic"].as_f64().unwrap() > 10.0);
+    let (t, se) = (f["t_stat"].as_f64().unwrap(), f["std_error"].as_f64().unwrap());
+    assert!(t.abs() >= gyrocomp::gap::T_MIN && se > 0.0 && (k / se - t).abs() < 1e-6 * t.abs(), "t {t}, SE {se}");
     for name in ["report.md", "model.toml", "residual.svg", "finding_1_scale_factor_z.svg"] {
         let t = std::fs::read_to_string(p.join("gap").join(name)).unwrap();
         assert!(!t.is_empty(), "{name}");
@@ -170,4 +171,126 @@ fn bad_input_is_named() {
         .unwrap();
     let e = fails(&mut gap(&p.join("late.csv"), &truth, &model, &out));
     assert!(e.contains("line up"), "{e}");
+}
+
+const CLEAN: &str = "[gyro]
+effects = [\"turn_on_bias\", \"thermal_linear\"]
+[gyro.turn_on_bias]
+bias = [0.12, -0.31, 0.05]
+[gyro.thermal_linear]
+t0 = 25.0
+p1 = [0.002, 0.0044, 0.0192]
+";
+
+fn simulate(p: &Path, model: &str, scenario: &str, seed: u32, duration: u32, dir: &str) {
+    std::fs::write(p.join(format!("{dir}.toml")), model).unwrap();
+    ok(exe()
+        .args(["simulate", "--scenario", scenario, "--seed", &seed.to_string(), "--duration", &duration.to_string(), "--model"])
+        .arg(p.join(format!("{dir}.toml")))
+        .arg("--out")
+        .arg(p.join(dir)));
+}
+
+#[test]
+fn clean_run_finds_nothing() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    std::fs::write(p.join("paper.toml"), PAPER).unwrap();
+    simulate(p, CLEAN, "vehicle", 4, 400, "sim");
+    let out = ok(&mut gap(&p.join("sim/imu.log"), &p.join("sim/truth.csv"), &p.join("paper.toml"), &p.join("gap")));
+    assert!(out.contains("clean: nothing missing") && !out.contains("found "), "{out}");
+    let rep: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(p.join("gap/report.json")).unwrap()).unwrap();
+    assert_eq!(rep["clean"], true);
+    assert_eq!(rep["findings"].as_array().unwrap().len(), 0);
+    assert_eq!(rep["ambiguous"].as_array().unwrap().len(), 0);
+    // the noise model fits the data: whitened residual variance near 1 on every axis
+    for v in rep["variance_ratio_final"].as_array().unwrap() {
+        assert!((v.as_f64().unwrap() - 1.0).abs() < 0.05, "{}", rep["variance_ratio_final"]);
+    }
+    // same inputs, byte-identical outputs
+    ok(&mut gap(&p.join("sim/imu.log"), &p.join("sim/truth.csv"), &p.join("paper.toml"), &p.join("gap2")));
+    for name in ["report.json", "report.md", "model.toml", "residual.svg"] {
+        assert!(std::fs::read(p.join("gap").join(name)).unwrap() == std::fs::read(p.join("gap2").join(name)).unwrap(), "{name} differs");
+    }
+}
+
+#[test]
+fn shared_time_delay_is_one_finding_for_all_axes() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    std::fs::write(p.join("paper.toml"), PAPER).unwrap();
+    let hidden = CLEAN.replace("\"thermal_linear\"]", "\"thermal_linear\", \"time_delay\"]") + "[gyro.time_delay]\ndelay_s = 0.004\n";
+    simulate(p, &hidden, "vehicle", 5, 400, "sim");
+    let out = ok(&mut gap(&p.join("sim/imu.log"), &p.join("sim/truth.csv"), &p.join("paper.toml"), &p.join("gap")));
+    assert!(out.contains("found time_delay (one delay shared by all axes): "), "{out}");
+    assert!(!out.contains(" on z") && !out.contains("found on"), "{out}");
+    let rep: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(p.join("gap/report.json")).unwrap()).unwrap();
+    let f = &rep["findings"][0];
+    assert_eq!(f["effect"], "time_delay");
+    assert_eq!(f["axis"], "all");
+    assert_eq!(f["evidence"]["shared_by_all_axes"], true);
+    let k = f["coefficient"].as_f64().unwrap();
+    assert!((k - 0.004).abs() <= 0.0004, "{k}");
+    assert_eq!(rep["findings"].as_array().unwrap().len(), 1, "{}", rep["findings"]);
+    let md = std::fs::read_to_string(p.join("gap/report.md")).unwrap();
+    assert!(md.contains("`time_delay` (one delay shared by all axes)"), "{md}");
+    assert!(p.join("gap/finding_1_time_delay_all.svg").exists());
+}
+
+#[test]
+fn mismatched_measured_and_truth_are_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    std::fs::write(p.join("paper.toml"), PAPER).unwrap();
+    simulate(p, CLEAN, "vehicle", 1, 300, "a");
+    simulate(p, CLEAN, "vehicle", 2, 300, "b");
+    // measured of run a, truth of run b: the temperatures disagree
+    let e = fails(&mut gap(&p.join("a/imu.log"), &p.join("b/truth.csv"), &p.join("paper.toml"), &p.join("gap")));
+    assert!(e.contains("measured and truth do not agree") && e.contains("temperature") && e.contains("Refusing"), "{e}");
+    assert!(!p.join("gap/report.json").exists(), "a refused run writes no report");
+    // without the truth's temperature: the rates disagree
+    let truth = std::fs::read_to_string(p.join("b/truth.csv")).unwrap();
+    let no_temp: String = truth.lines().map(|l| l.rsplit_once(',').unwrap().0.to_string() + "\n").collect();
+    std::fs::write(p.join("b_no_temp.csv"), no_temp).unwrap();
+    let e = fails(&mut gap(&p.join("a/imu.log"), &p.join("b_no_temp.csv"), &p.join("paper.toml"), &p.join("gap")));
+    assert!(e.contains("measured and truth do not agree") && e.contains("correlation") && e.contains("Refusing"), "{e}");
+    // the same files matched are accepted
+    ok(&mut gap(&p.join("b/imu.log"), &p.join("b_no_temp.csv"), &p.join("paper.toml"), &p.join("gap")));
+}
+
+#[test]
+fn every_option_explains_itself() {
+    let o = exe().args(["gap", "--help"]).output().unwrap();
+    let h = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{h}");
+    for want in [
+        "--measured",
+        "--truth",
+        "--model",
+        "--out",
+        "--profile",
+        "deg/s",
+        "deg C",
+        "deg/s/sqrt(Hz)",
+        "default 0.0135",
+        "default 0.0002",
+        "[default: adis16448]",
+        "LSB",
+    ] {
+        assert!(h.contains(want), "gap --help lacks {want:?}:\n{h}");
+    }
+}
+
+#[test]
+fn an_input_is_never_an_output() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    std::fs::write(p.join("paper.toml"), PAPER).unwrap();
+    simulate(p, CLEAN, "static", 1, 30, "sim");
+    // the output directory holds the base model under an output's name
+    std::fs::create_dir_all(p.join("gap")).unwrap();
+    std::fs::write(p.join("gap/model.toml"), PAPER).unwrap();
+    let e = fails(&mut gap(&p.join("sim/imu.log"), &p.join("sim/truth.csv"), &p.join("gap/model.toml"), &p.join("gap")));
+    assert!(e.contains("refusing to overwrite an input"), "{e}");
+    assert_eq!(std::fs::read_to_string(p.join("gap/model.toml")).unwrap(), PAPER);
 }
