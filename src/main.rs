@@ -136,10 +136,13 @@ fn main() -> ExitCode {
 }
 
 fn cmd_replay(config: Option<PathBuf>, input: PathBuf, output: Option<PathBuf>, csv: Option<PathBuf>) -> Result<(), String> {
-    let cfg = load_config(&config)?;
     if output.is_none() && csv.is_none() {
         return Err("replay needs --output and/or --csv".into());
     }
+    // the config is an input too (replay_files itself guards --input)
+    let outs: Vec<&std::path::Path> = output.iter().chain(&csv).map(PathBuf::as_path).collect();
+    gyrocomp::outfile::refuse_inputs_as_outputs(&config.iter().map(PathBuf::as_path).collect::<Vec<_>>(), &outs)?;
+    let cfg = load_config(&config)?;
     let files = ReplayFiles { input: &input, output: output.as_deref(), csv: csv.as_deref() };
     let sum = replay_files(&cfg, &files, None).map_err(|e| e.to_string())?;
     eprint!("replay {}:\n{}", input.display(), sum.render());
