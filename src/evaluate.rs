@@ -174,11 +174,15 @@ pub fn score(name: &str, data: &RunData, est: &[Estimate], mode_seconds: [f64; 3
 pub fn oracle(data: &RunData, est: &[Estimate], start: f64) -> (Metrics, Vec<(f64, [f64; 3])>) {
     let dt = 1.0 / data.info.rate_hz;
     let n = est.len().min(data.truth.len());
-    let k0 = data.truth.iter().position(|t| t.t >= start).unwrap_or(0).min(n.saturating_sub(1));
+    let mut m = Metrics { name: "oracle floor".into(), ..Default::default() };
+    // No sample at or after `start` (a run that ends before its manoeuvres): nothing to score.
+    let k0 = match data.truth[..n].iter().position(|t| t.t >= start) {
+        Some(k) => k,
+        None => return (m, Vec::new()),
+    };
     let tr = &data.truth;
     let att0 = tr[k0].att.map(f64::to_radians);
     let mut c = c_nb(att0[0], att0[1], att0[2]);
-    let mut m = Metrics { name: "oracle floor".into(), ..Default::default() };
     let mut sq = [0.0; 3];
     let mut errs = Vec::with_capacity(n - k0);
     for k in k0 + 1..n {

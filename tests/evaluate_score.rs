@@ -93,6 +93,7 @@ fn ablation_prints_the_three_paper_cases_and_writes_the_report() {
     assert!(!text.lines().any(|l| l.starts_with("oracle floor") || l.contains("inf")), "{text}");
     let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(rep.join("report.json")).unwrap()).unwrap();
     assert!(j["cases"].as_array().unwrap().len() >= 3);
+    assert_eq!(j["oracle"]["samples"], 0, "an oracle floor over a window the run never reaches");
     for svg in ["attitude_error.svg", "bias.svg"] {
         let s = std::fs::read_to_string(rep.join(svg)).unwrap();
         assert!(s.starts_with("<svg") && s.contains("polyline"), "{svg}");
