@@ -1,12 +1,12 @@
 //! The configuration file: one TOML document, every key optional.
 //!
 //! Unknown keys are refused (`deny_unknown_fields`), and `validate` refuses
-//! bad values with a message that names the key. `config/gyrocomp.toml` is
-//! the annotated full example; `gyrocomp check-config FILE` prints the
-//! effective configuration.
+//! bad values with a message that names the key and the line it is on.
+//! `config/gyrocomp.toml` is the annotated full example; `gyrocomp
+//! check-config FILE` prints the effective configuration ([`Config::to_toml`]).
 
 use crate::adis::{builtin_profile, InputIds, Profile, BUILTIN_PROFILES};
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize};
 use std::path::Path;
 
 #[derive(Debug, thiserror::Error)]
@@ -15,8 +15,81 @@ pub enum ConfigError {
     Io { path: String, source: std::io::Error },
     #[error("config {path}: {msg}")]
     Parse { path: String, msg: String },
-    #[error("config {path}: {key}: {msg}")]
-    Invalid { path: String, key: String, msg: String },
+    /// A value the parser accepted but `validate` refuses; `at` is where
+    /// the key is written (None: not in the file, its default is meant).
+    #[error("config {path}{}: {key}{}: {msg}", .at.as_ref().map(|a| a.to_string()).unwrap_or_default(), if .at.is_none() { " (not in the file: its default)" } else { "" })]
+    Invalid { path: String, key: String, at: Option<Location>, msg: String },
+}
+
+/// A place in the config text (1-based).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Location {
+    pub line: usize,
+    pub column: usize,
+}
+
+impl std::fmt::Display for Location {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, ", line {}, column {}", self.line, self.column)
+    }
+}
+
+/// Where `key` (`table.key`, `table.key[i]`, or a table) is written in `text`.
+pub fn locate(text: &str, key: &str) -> Option<Location> {
+    let doc = toml_edit::ImDocument::parse(text).ok()?;
+    let (path, index) = match key.strip_suffix(']').and_then(|k| k.rsplit_once('[')) {
+        Some((k, i)) => (k, i.parse::<usize>().ok()),
+        None => (key, None),
+    };
+    let mut table: &dyn toml_edit::TableLike = doc.as_table();
+    let mut span = None;
+    let parts: Vec<&str> = path.split('.').collect();
+    for (k, part) in parts.iter().enumerate() {
+        let (kk, item) = table.get_key_value(part)?;
+        span = match item {
+            toml_edit::Item::Table(t) if k + 1 < parts.len() || t.span().is_some() => t.span().or_else(|| kk.span()),
+            _ => kk.span(),
+        };
+        if k + 1 < parts.len() {
+            table = item.as_table_like()?;
+        } else if let Some(i) = index {
+            span = item.as_array().and_then(|a| a.get(i)).and_then(|v| v.span()).or(span);
+        }
+    }
+    let at = span?.start;
+    let before = &text[..at.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.len() - before.rfind('\n').map(|p| p + 1).unwrap_or(0) + 1;
+    Some(Location { line, column })
+}
+
+/// The parser's words for types, in a user's words.
+fn plain_types(msg: &str) -> String {
+    msg.replace("expected f64", "expected a number")
+        .replace("expected u32", "expected a whole number >= 0")
+        .replace("expected u8", "expected a whole number from 0 to 255")
+        .replace("expected i64", "expected a whole number")
+        .replace("expected a boolean", "expected true or false")
+}
+
+/// `[input.ids]`: every key optional, the others keep their defaults.
+fn partial_ids<'de, D: Deserializer<'de>>(d: D) -> Result<InputIds, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Partial {
+        gyro: Option<u32>,
+        accel: Option<u32>,
+        magn: Option<u32>,
+        aux: Option<u32>,
+    }
+    let p = Partial::deserialize(d)?;
+    let d = InputIds::DEFAULT;
+    Ok(InputIds {
+        gyro: p.gyro.unwrap_or(d.gyro),
+        accel: p.accel.unwrap_or(d.accel),
+        magn: p.magn.unwrap_or(d.magn),
+        aux: p.aux.unwrap_or(d.aux),
+    })
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
@@ -43,7 +116,8 @@ pub struct InputConfig {
     pub profile: String,
     /// Sample rate, Hz; 0 = the profile's nominal rate.
     pub rate_hz: f64,
-    /// Input frame IDs.
+    /// Input frame IDs; each key optional (default 0x100..0x103).
+    #[serde(deserialize_with = "partial_ids")]
     pub ids: InputIds,
     /// Overrides of the profile's scales (None = the profile's value).
     pub gyro_lsb: Option<f64>,
@@ -529,7 +603,7 @@ impl Config {
                 cfg.speed.dbc = dir.join(&cfg.speed.dbc).display().to_string();
             }
         }
-        cfg.check_speed_source().map_err(|(key, msg)| ConfigError::Invalid { path: p, key, msg })?;
+        cfg.check_speed_source().map_err(|(key, msg)| ConfigError::Invalid { path: p, at: locate(&text, &key), key, msg })?;
         Ok(cfg)
     }
 
@@ -552,9 +626,23 @@ impl Config {
 
     /// Parse and validate config text; `origin` names it in errors.
     pub fn parse(text: &str, origin: &str) -> Result<Config, ConfigError> {
-        let cfg: Config = toml::from_str(text).map_err(|e| ConfigError::Parse { path: origin.into(), msg: e.to_string() })?;
-        cfg.validate().map_err(|(key, msg)| ConfigError::Invalid { path: origin.into(), key, msg })?;
+        let cfg: Config = toml::from_str(text).map_err(|e| ConfigError::Parse { path: origin.into(), msg: plain_types(&e.to_string()) })?;
+        cfg.validate().map_err(|(key, msg)| ConfigError::Invalid { path: origin.into(), at: locate(text, &key), key, msg })?;
         Ok(cfg)
+    }
+
+    /// The configuration in effect: the sample rate and the scales resolved
+    /// from the profile (what [`Config::profile`] gives), everything else as is.
+    pub fn effective(&self) -> Config {
+        let mut c = self.clone();
+        let p = self.profile();
+        c.input.rate_hz = p.rate_hz;
+        c.input.gyro_lsb = Some(p.gyro_lsb);
+        c.input.accel_lsb = Some(p.accel_lsb);
+        c.input.magn_lsb = Some(p.magn_lsb);
+        c.input.temp_lsb = Some(p.temp_lsb);
+        c.input.temp_offset = Some(p.temp_offset);
+        c
     }
 
     /// The effective profile: the named built-in with the overrides applied.
@@ -578,9 +666,30 @@ impl Config {
         self.ekf.init_bias_sigma.unwrap_or_else(|| self.profile().gyro_bias_sigma)
     }
 
-    /// The effective config as TOML text.
+    /// The effective config ([`Config::effective`]) as TOML text: every key,
+    /// CAN IDs in hex. It is a valid config file that parses back to the
+    /// same effective config.
     pub fn to_toml(&self) -> String {
-        toml::to_string(self).unwrap_or_else(|e| format!("# cannot serialise: {e}\n"))
+        let text = toml::to_string(&self.effective()).unwrap_or_else(|e| format!("# cannot serialise: {e}\n"));
+        let mut out = format!(
+            "# effective configuration: every key with its value in force; rate_hz and the scales are {}'s unless overridden\n",
+            self.input.profile
+        );
+        let mut section = "";
+        for line in text.lines() {
+            if line.starts_with('[') {
+                section = line;
+            }
+            let hex = match line.split_once(" = ") {
+                Some((k, v)) if section == "[input.ids]" || (section == "[output]" && k.ends_with("_id")) => {
+                    v.parse::<u32>().ok().map(|n| format!("{k} = 0x{n:03X}"))
+                }
+                _ => None,
+            };
+            out += hex.as_deref().unwrap_or(line);
+            out += "\n";
+        }
+        out
     }
 
     /// Check every value; on failure returns (key, message).
@@ -808,8 +917,68 @@ mod tests {
         let c = Config::parse("", "t.toml").unwrap();
         assert_eq!(c, Config::default());
         assert_eq!(c.profile().rate_hz, 204.8);
-        // the printed effective config parses back to the same value
-        assert_eq!(Config::parse(&c.to_toml(), "x").unwrap(), c);
+        // the printed effective config parses back to the same effective config
+        assert_eq!(Config::parse(&c.to_toml(), "x").unwrap(), c.effective());
+    }
+
+    #[test]
+    fn value_errors_give_the_key_and_its_line() {
+        let e = bad("# c\n\n[switching]\njerk_ratio = 0.2\ninner = [0.99, 1.3]\n");
+        assert!(e.contains("line 5, column 1: switching.inner:"), "{e}");
+        // an element of an array on a continuation line
+        let e = bad("[thermal]\np1 = [0.0,\n  inf, 0.0]\n");
+        assert!(e.contains("line 3, column 3: thermal.p1[1]:"), "{e}");
+        // inline tables and dotted keys
+        let e = bad("output = { rate_id = 0x900 }\n");
+        assert!(e.contains("line 1, column 12: output.rate_id:"), "{e}");
+        let e = bad("[input]\nprofile = \"adis16448\"\nids.gyro = 0x101\n");
+        assert!(e.contains("line 3, column 1: input.ids:"), "{e}");
+        // a default that conflicts with a value in the file is named as such
+        let e = bad("[switching]\nouter = [0.99, 1.01]\n");
+        assert!(e.contains("switching.inner (not in the file: its default)"), "{e}");
+    }
+
+    #[test]
+    fn type_errors_read_in_plain_words() {
+        let e = bad("[input]\nrate_hz = \"fast\"\n");
+        assert!(e.contains("expected a number") && !e.contains("f64"), "{e}");
+        assert!(e.contains("line 2"), "{e}");
+        let e = bad("[output]\nrate_id = -1\n");
+        assert!(!e.contains("u32"), "{e}");
+        // a whole number where a real one is wanted is fine
+        assert_eq!(Config::parse("[input]\nrate_hz = 100\n", "t").unwrap().input.rate_hz, 100.0);
+    }
+
+    #[test]
+    fn a_partial_ids_table_keeps_the_other_defaults() {
+        for text in ["[input.ids]\ngyro = 0x200\n", "[input]\nids = { gyro = 0x200 }\n", "[input]\nids.gyro = 0x200\n"] {
+            let c = Config::parse(text, "t").unwrap_or_else(|e| panic!("{text}: {e}"));
+            assert_eq!(c.input.ids, InputIds { gyro: 0x200, ..InputIds::DEFAULT });
+        }
+        assert!(bad("[input.ids]\ngyr = 0x200\n").contains("gyr"));
+    }
+
+    #[test]
+    fn effective_config_resolves_the_rate_prints_hex_ids_and_round_trips() {
+        for (profile, rate) in [("adis16448", "204.8"), ("adis16405", "819.2"), ("adis16465-1", "2000.0")] {
+            let c = Config::parse(&format!("[input]\nprofile = \"{profile}\"\nrate_hz = 0.0\n"), "t").unwrap();
+            let text = c.to_toml();
+            assert!(text.contains(&format!("rate_hz = {rate}\n")), "{text}");
+            let back = Config::parse(&text, "printed").unwrap_or_else(|e| panic!("{e}\n{text}"));
+            assert_eq!(back, c.effective());
+            assert_eq!(back.profile(), c.profile());
+            assert_eq!(back.to_toml(), text, "printing is a fixed point");
+        }
+        let c = Config::parse("[input.ids]\naux = 0x7FF\n[output]\nstatus_id = 0x20\n", "t").unwrap();
+        let text = c.to_toml();
+        for want in ["gyro = 0x100\n", "aux = 0x7FF\n", "rate_id = 0x110\n", "status_id = 0x020\n"] {
+            assert!(text.contains(want), "{want} missing:\n{text}");
+        }
+        assert_eq!(Config::parse(&text, "printed").unwrap(), c.effective());
+        // the shipped example round-trips too
+        let shipped = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/gyrocomp.toml")).unwrap();
+        let c = Config::parse(&shipped, "gyrocomp.toml").unwrap();
+        assert_eq!(Config::parse(&c.to_toml(), "printed").unwrap(), c.effective());
     }
 
     #[test]
@@ -909,7 +1078,7 @@ mod tests {
         .unwrap();
         assert_eq!(c.thermal.p4[2], -1e-6);
         assert_eq!(c.thermal.t_max, Some(70.0));
-        assert_eq!(Config::parse(&c.to_toml(), "x").unwrap(), c);
+        assert_eq!(Config::parse(&c.to_toml(), "x").unwrap(), c.effective());
     }
 
     #[test]

@@ -174,11 +174,15 @@ pub fn score(name: &str, data: &RunData, est: &[Estimate], mode_seconds: [f64; 3
 pub fn oracle(data: &RunData, est: &[Estimate], start: f64) -> (Metrics, Vec<(f64, [f64; 3])>) {
     let dt = 1.0 / data.info.rate_hz;
     let n = est.len().min(data.truth.len());
-    let k0 = data.truth.iter().position(|t| t.t >= start).unwrap_or(0).min(n.saturating_sub(1));
+    let mut m = Metrics { name: "oracle floor".into(), ..Default::default() };
+    // No sample at or after `start` (a run that ends before its manoeuvres): nothing to score.
+    let k0 = match data.truth[..n].iter().position(|t| t.t >= start) {
+        Some(k) => k,
+        None => return (m, Vec::new()),
+    };
     let tr = &data.truth;
     let att0 = tr[k0].att.map(f64::to_radians);
     let mut c = c_nb(att0[0], att0[1], att0[2]);
-    let mut m = Metrics { name: "oracle floor".into(), ..Default::default() };
     let mut sq = [0.0; 3];
     let mut errs = Vec::with_capacity(n - k0);
     for k in k0 + 1..n {
@@ -262,29 +266,131 @@ pub fn cases(base: &Config, ablation: bool) -> Vec<(String, Config)> {
     v
 }
 
-pub fn table_header() -> String {
-    format!(
-        "{:<22} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>7} {:>7} {:>7}\n",
-        "case", "roll_max", "pitch_mx", "yaw_max", "roll_rms", "pitch_rm", "yaw_rms", "bias_rms", "fuse_s", "blend_s", "gyro_s"
-    )
+/// A text table whose header names every column and gives its unit on a
+/// second line. Columns are as wide as their header (at least 8); a longer
+/// cell widens its row, it is never cut.
+pub struct Table {
+    cols: Vec<(&'static str, &'static str, usize)>,
+    /// Leading columns that are text (left-aligned).
+    left: usize,
 }
 
-pub fn table_row(m: &Metrics) -> String {
+impl Table {
+    /// Columns as (name, unit); the first is left-aligned, the others right-aligned.
+    pub fn new(cols: &[(&'static str, &'static str)]) -> Table {
+        Table { cols: cols.iter().map(|(n, u)| (*n, *u, n.len().max(u.len()).max(8))).collect(), left: 1 }
+    }
+
+    /// The first `n` columns are text (left-aligned).
+    pub fn text_columns(mut self, n: usize) -> Table {
+        self.left = n;
+        self
+    }
+
+    /// The same columns with column `k` `w` characters wide (or its header's width).
+    pub fn width(mut self, k: usize, w: usize) -> Table {
+        self.cols[k].2 = w.max(self.cols[k].0.len()).max(self.cols[k].1.len());
+        self
+    }
+
+    /// The two header lines.
+    pub fn header(&self) -> String {
+        let names: Vec<String> = self.cols.iter().map(|c| c.0.to_string()).collect();
+        let units: Vec<String> = self.cols.iter().map(|c| c.1.to_string()).collect();
+        self.line(&names) + &self.line(&units)
+    }
+
+    /// One row.
+    pub fn line(&self, cells: &[String]) -> String {
+        let mut s = String::new();
+        for (k, (c, (_, _, w))) in cells.iter().zip(&self.cols).enumerate() {
+            let sep = if k == 0 { "" } else { "  " };
+            if k < self.left {
+                s += &format!("{sep}{c:<w$}");
+            } else {
+                s += &format!("{sep}{c:>w$}");
+            }
+        }
+        s.trim_end().to_string() + "\n"
+    }
+}
+
+/// `v` with `d` decimals, or `-` when it is not a number.
+fn num(v: f64, d: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.d$}")
+    } else {
+        "-".into()
+    }
+}
+
+/// The columns of a single run's table.
+pub fn run_table() -> Table {
+    Table::new(&[
+        ("case", ""),
+        ("max roll", "deg"),
+        ("max pitch", "deg"),
+        ("max yaw", "deg"),
+        ("rms roll", "deg"),
+        ("rms pitch", "deg"),
+        ("rms yaw", "deg"),
+        ("rms bias", "deg/s"),
+        ("run in fusion", "s"),
+        ("run in blend", "s"),
+        ("run gyro only", "s"),
+    ])
+    .width(0, 22)
+}
+
+/// One row of [`run_table`]; the oracle floor has no bias and no modes.
+pub fn run_row(t: &Table, m: &Metrics, oracle: bool) -> String {
     let brms = (m.bias_rms.iter().map(|b| b * b).sum::<f64>() / 3.0).sqrt();
-    format!(
-        "{:<22} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>9.5} {:>7.1} {:>7.1} {:>7.1}\n",
-        m.name,
-        m.max_err[0],
-        m.max_err[1],
-        m.max_err[2],
-        m.rms_err[0],
-        m.rms_err[1],
-        m.rms_err[2],
-        brms,
-        m.mode_seconds[0],
-        m.mode_seconds[1],
-        m.mode_seconds[2]
-    )
+    let mut c = vec![m.name.clone()];
+    c.extend(m.max_err.iter().chain(&m.rms_err).map(|v| num(*v, 3)));
+    if oracle {
+        c.extend(["-"; 4].map(String::from));
+    } else {
+        c.push(num(brms, 5));
+        c.extend(m.mode_seconds.iter().map(|v| num(*v, 1)));
+    }
+    t.line(&c)
+}
+
+/// The part of a run the manoeuvres-only scores and the oracle floor cover.
+#[derive(Clone, Copy, Debug)]
+pub struct Window {
+    pub start: f64,
+    /// Time of the last sample, s.
+    pub end: f64,
+}
+
+impl Window {
+    pub fn of(data: &RunData) -> Window {
+        Window { start: data.info.manoeuvre_start_s, end: data.truth.last().map(|t| t.t).unwrap_or(0.0) }
+    }
+
+    /// No sample after the start: nothing to score, no oracle floor.
+    pub fn is_empty(&self) -> bool {
+        self.start >= self.end
+    }
+
+    /// The table title of the window.
+    pub fn title(&self, scenario: &str) -> String {
+        if self.start <= 0.0 {
+            format!("oracle window, t = 0.0..{:.1} s (scenario {scenario} has no manoeuvres: the whole run)", self.end)
+        } else {
+            format!("manoeuvres only, t = {:.1}..{:.1} s (the oracle floor's window)", self.start, self.end)
+        }
+    }
+
+    /// The warning printed instead of an empty window's table.
+    pub fn warning(&self) -> String {
+        format!(
+            "warning: no manoeuvres to score: the run ends at {:.1} s, before the scenario's manoeuvres start \
+             (paper and vehicle: 350 s); the manoeuvres-only scores and the oracle floor are left out (use a longer --duration)",
+            self.end
+        )
+    }
 }
 
 #[derive(Serialize)]
@@ -308,11 +414,41 @@ pub struct EvalOptions {
 /// Per sample: time (s) and the roll/pitch/yaw error (deg).
 type ErrorRow = (f64, [f64; 3]);
 
-/// Evaluate one simulated directory; returns the printed table.
+/// The files of a `gyrocomp simulate` directory that evaluate reads.
+const RUN_FILES: [&str; 6] = ["imu.log", "truth.csv", "sensor.toml", "bias.csv", "scenario.toml", "config.toml"];
+
+/// Write the report files: every destination checked first (not an input,
+/// not a directory), then each written through a temporary file.
+fn write_reports(dir: &Path, inputs: &[&Path], files: &[(&str, Vec<u8>)]) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let dests: Vec<PathBuf> = files.iter().map(|(n, _)| dir.join(n)).collect();
+    let refs: Vec<&Path> = dests.iter().map(PathBuf::as_path).collect();
+    crate::outfile::refuse_inputs_as_outputs(inputs, &refs)?;
+    if let Some(d) = dests.iter().find(|d| d.is_dir()) {
+        return Err(format!("{} is a directory: the report is a file of that name", d.display()));
+    }
+    for (d, (_, bytes)) in dests.iter().zip(files) {
+        crate::outfile::write_atomic(d, bytes).map_err(|e| format!("{}: {e}", d.display()))?;
+    }
+    Ok(())
+}
+
+/// Evaluate one simulated directory; returns the printed tables.
 pub fn evaluate_dir(cfg: &Config, dir: &Path, o: &EvalOptions) -> Result<String, String> {
+    evaluate_dir_with(cfg, dir, o, None)
+}
+
+/// [`evaluate_dir`]; `config_path` (the `--config` file) is an input the
+/// report must not overwrite.
+pub fn evaluate_dir_with(cfg: &Config, dir: &Path, o: &EvalOptions, config_path: Option<&Path>) -> Result<String, String> {
     let data = RunData::load(dir)?;
+    let win = Window::of(&data);
+    if o.score_from >= win.end {
+        return Err(format!("--score-from {} s is at or after the end of the run ({:.1} s): nothing to score", o.score_from, win.end));
+    }
     let mut out = String::new();
     let mut metrics = Vec::new();
+    let mut man = Vec::new();
     let mut first: Option<(Vec<Estimate>, Vec<ErrorRow>)> = None;
     for (name, c) in cases(cfg, o.ablation) {
         let (est, ms) = data.estimates(&c)?;
@@ -320,36 +456,57 @@ pub fn evaluate_dir(cfg: &Config, dir: &Path, o: &EvalOptions) -> Result<String,
             return Err(format!("{} estimates for {} truth rows", est.len(), data.truth.len()));
         }
         metrics.push(score(&name, &data, &est, ms, o.score_from));
+        man.push(score(&name, &data, &est, ms, win.start));
         if first.is_none() || name.starts_with("default") {
             let errs = errors(&data, &est);
             first = Some((est, errs));
         }
     }
     let (est, errs) = first.ok_or("no case ran")?;
-    let (orc, _) = oracle(&data, &est, data.info.manoeuvre_start_s);
-    out += &table_header();
-    for m in &metrics {
-        out += &table_row(m);
-    }
-    out += &table_row(&orc);
+    let (orc, _) = oracle(&data, &est, win.start);
+    let t = run_table();
     out += &format!(
-        "(scored from {:.1} s; oracle floor from {:.1} s: gyro with the deterministic error known exactly)\n",
-        o.score_from, data.info.manoeuvre_start_s
+        "-- scored over t = {:.1}..{:.1} s (from --score-from to the end); time per mode over the whole run\n",
+        o.score_from, win.end
     );
+    out += &t.header();
+    for m in &metrics {
+        out += &run_row(&t, m, false);
+    }
+    if win.is_empty() {
+        eprintln!("{}", win.warning());
+        out += &win.warning();
+        out += "\n";
+    } else {
+        out += &format!("-- {}\n", win.title(&data.info.scenario));
+        out += &t.header();
+        for m in &man {
+            out += &run_row(&t, m, false);
+        }
+        out += &run_row(&t, &orc, true);
+        out += "(oracle floor: the measured gyro with the deterministic error known exactly, integrated from the true attitude at the window's start)\n";
+    }
     if let Some(rd) = &o.out {
-        std::fs::create_dir_all(rd).map_err(|e| format!("{}: {e}", rd.display()))?;
         let rep = Report {
             input: dir.display().to_string(),
             scenario: &data.info,
             score_from_s: o.score_from,
-            oracle_start_s: data.info.manoeuvre_start_s,
+            oracle_start_s: win.start,
             cases: &metrics,
             oracle: &orc,
         };
-        let p = rd.join("report.json");
-        std::fs::write(&p, serde_json::to_string_pretty(&rep).map_err(|e| e.to_string())?).map_err(|e| format!("{}: {e}", p.display()))?;
-        plot::attitude_error(&rd.join("attitude_error.svg"), &errs, &est).map_err(|e| format!("plot: {e}"))?;
-        plot::bias(&rd.join("bias.svg"), &est, &data).map_err(|e| format!("plot: {e}"))?;
+        let json = serde_json::to_string_pretty(&rep).map_err(|e| e.to_string())?;
+        let mut att = String::new();
+        plot::attitude_error(&mut att, &errs, &est).map_err(|e| format!("plot: {e}"))?;
+        let mut bias = String::new();
+        plot::bias(&mut bias, &est, &data).map_err(|e| format!("plot: {e}"))?;
+        let inputs: Vec<PathBuf> = RUN_FILES.iter().map(|f| dir.join(f)).chain(config_path.map(Path::to_path_buf)).collect();
+        let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+        write_reports(
+            rd,
+            &inputs,
+            &[("report.json", json.into_bytes()), ("attitude_error.svg", att.into_bytes()), ("bias.svg", bias.into_bytes())],
+        )?;
         out += &format!("wrote {}/report.json, attitude_error.svg, bias.svg\n", rd.display());
     }
     Ok(out)
@@ -381,22 +538,73 @@ pub fn median(v: &[f64]) -> f64 {
     }
 }
 
-/// Evaluate many seeds of a scenario; prints progress to stderr, returns the table.
+/// Evaluate many seeds of a scenario; prints progress to stderr, returns the tables.
 pub fn evaluate_seeds(base: &Config, sim: &SimOptions, seeds: std::ops::RangeInclusive<u64>, o: &EvalOptions) -> Result<String, String> {
+    evaluate_seeds_with(base, sim, seeds, o, None)
+}
+
+/// [`evaluate_seeds`]; `config_path` (the `--config` file) is an input the
+/// report must not overwrite.
+pub fn evaluate_seeds_with(
+    base: &Config,
+    sim: &SimOptions,
+    seeds: std::ops::RangeInclusive<u64>,
+    o: &EvalOptions,
+    config_path: Option<&Path>,
+) -> Result<String, String> {
     let list: Vec<u64> = seeds.collect();
     let mut rows: Vec<SeedRow> = Vec::new();
     let case_list = cases(base, o.ablation);
     let mut out = String::new();
-    let head = format!(
-        "{:>5} {:<22} {:>8} {:>8} {:>8} {:>8} {:>7} | {:>8} {:>8} {:>8} | {:>8} {:>8}\n",
-        "seed", "case", "roll_max", "pitch_mx", "yaw_rms", "bias_rms", "t_max", "m_roll", "m_pitch", "m_yawrms", "orc_roll", "orc_pitc"
-    );
-    eprint!("{head}");
-    out += &head;
+    let per_seed = Table::new(&[
+        ("seed", ""),
+        ("case", ""),
+        ("max roll", "deg"),
+        ("max pitch", "deg"),
+        ("rms yaw", "deg"),
+        ("rms bias", "deg/s"),
+        ("t max tilt", "s"),
+        ("man max roll", "deg"),
+        ("man max pitch", "deg"),
+        ("man rms yaw", "deg"),
+        ("oracle roll", "deg"),
+        ("oracle pitch", "deg"),
+    ])
+    .text_columns(2)
+    .width(0, 5)
+    .width(1, 22);
+    let mut win: Option<Window> = None;
     for (i, &seed) in list.iter().enumerate() {
         let mut so = sim.clone();
         so.seed = seed;
         let data = RunData::simulate(&so)?;
+        let w = Window::of(&data);
+        if win.is_none() {
+            if o.score_from >= w.end {
+                return Err(format!(
+                    "--score-from {} s is at or after the end of the runs ({:.1} s): nothing to score",
+                    o.score_from, w.end
+                ));
+            }
+            let head = format!(
+                "per seed: max roll/pitch, rms yaw, rms bias and the time of the largest tilt error over t = {:.1}..{:.1} s; \
+                 'man' over {}; 'oracle' the oracle floor there\n{}",
+                o.score_from,
+                w.end,
+                if w.is_empty() {
+                    "the manoeuvres (none in these runs)".to_string()
+                } else {
+                    format!("t = {:.1}..{:.1} s", w.start, w.end)
+                },
+                per_seed.header()
+            );
+            eprint!("{head}");
+            out += &head;
+            if w.is_empty() {
+                eprintln!("{}", w.warning());
+            }
+        }
+        let w = *win.get_or_insert(w);
         let mut ms = Vec::new();
         let mut man = Vec::new();
         let mut orc = None;
@@ -408,51 +616,75 @@ pub fn evaluate_seeds(base: &Config, sim: &SimOptions, seeds: std::ops::RangeInc
             }
             let (est, mode_s) = data.estimates(&c)?;
             if orc.is_none() {
-                orc = Some(oracle(&data, &est, data.info.manoeuvre_start_s).0);
+                orc = Some(oracle(&data, &est, w.start).0);
             }
             ms.push(score(name, &data, &est, mode_s, o.score_from));
-            man.push(score(name, &data, &est, mode_s, data.info.manoeuvre_start_s));
+            man.push(score(name, &data, &est, mode_s, w.start));
         }
         let orc = orc.ok_or("no case")?;
         for (m, mm) in ms.iter().zip(&man) {
             let brms = (m.bias_rms.iter().map(|b| b * b).sum::<f64>() / 3.0).sqrt();
-            let line = format!(
-                "{:>5} {:<22} {:>8.3} {:>8.3} {:>8.3} {:>8.5} {:>7.1} | {:>8.3} {:>8.3} {:>8.3} | {:>8.3} {:>8.3}\n",
-                seed,
-                m.name,
-                m.max_err[0],
-                m.max_err[1],
-                m.rms_err[2],
-                brms,
-                m.t_max_tilt,
-                mm.max_err[0],
-                mm.max_err[1],
-                mm.rms_err[2],
-                orc.max_err[0],
-                orc.max_err[1]
-            );
+            let gone = |v: f64| if w.is_empty() { "-".to_string() } else { num(v, 3) };
+            let line = per_seed.line(&[
+                seed.to_string(),
+                m.name.clone(),
+                num(m.max_err[0], 3),
+                num(m.max_err[1], 3),
+                num(m.rms_err[2], 3),
+                num(brms, 5),
+                num(m.t_max_tilt, 1),
+                gone(mm.max_err[0]),
+                gone(mm.max_err[1]),
+                gone(mm.rms_err[2]),
+                gone(orc.max_err[0]),
+                gone(orc.max_err[1]),
+            ]);
             out += &line;
             eprint!("[{}/{}] {line}", i + 1, list.len());
         }
         rows.push(SeedRow { seed, cases: ms, manoeuvres: man, oracle: orc });
     }
+    let w = win.ok_or("no seed")?;
     let orc_med = median(&rows.iter().map(|r| r.oracle.tilt_max()).collect::<Vec<_>>());
-    out += &format!(
-        "\nsummary over {} seeds of {}{}{} ({} s), scored from {:.0} s; oracle floor (median of per-seed max roll/pitch) {:.3} deg\n",
-        rows.len(),
-        sim.scenario,
-        if sim.hard { " --hard" } else { "" },
-        if sim.power_on_moving { " --power-on-moving" } else { "" },
-        sim.duration.unwrap_or_else(|| sim::scenario::default_duration(&sim.scenario)),
-        o.score_from,
-        orc_med
-    );
-    for (title, man) in [(format!("scored from {:.0} s", o.score_from), false), ("manoeuvres only (oracle window)".to_string(), true)] {
-        out += &format!("-- {title}\n");
+    let name =
+        format!("{}{}{}", sim.scenario, if sim.hard { " --hard" } else { "" }, if sim.power_on_moving { " --power-on-moving" } else { "" });
+    let duration = sim.duration.unwrap_or_else(|| sim::scenario::default_duration(&sim.scenario));
+    out += &format!("\nsummary over {} seeds of {name} ({duration} s)", rows.len());
+    if w.is_empty() {
+        out += &format!("\n{}\n", w.warning());
+    } else {
         out += &format!(
-            "{:<22} {:>9} {:>10} {:>10} {:>9} {:>12} {:>11} {:>10}\n",
-            "case", "worst_rol", "worst_pitc", "median_max", "ratio_orc", "worst_yawrms", "seeds<=2deg", "worst_seed"
+            "; oracle floor (median over the seeds of the max roll/pitch error, t = {:.1}..{:.1} s) {:.3} deg\n",
+            w.start, w.end, orc_med
         );
+    }
+    let ratio_ok = !w.is_empty() && orc_med.is_finite() && orc_med > 0.0;
+    if !w.is_empty() && !ratio_ok {
+        let msg = format!("warning: the oracle floor is {orc_med} deg: no ratio to it is given");
+        eprintln!("{msg}");
+        out += &msg;
+        out += "\n";
+    }
+    out += "(worst = the largest over the seeds; median max = the median over the seeds of each seed's max roll/pitch error; \
+             ratio = median max / oracle floor; seeds <= 2 deg: seeds whose max roll and pitch error are within 2 deg)\n";
+    let summary = Table::new(&[
+        ("case", ""),
+        ("worst roll", "deg"),
+        ("worst pitch", "deg"),
+        ("median max", "deg"),
+        ("ratio to oracle", "x"),
+        ("worst rms yaw", "deg"),
+        ("seeds <= 2 deg", "of total"),
+        ("worst seed", ""),
+    ])
+    .width(0, 22);
+    let mut windows = vec![(format!("scored over t = {:.1}..{:.1} s", o.score_from, w.end), false)];
+    if !w.is_empty() {
+        windows.push((w.title(&sim.scenario), true));
+    }
+    for (title, man) in windows {
+        out += &format!("-- {title}\n");
+        out += &summary.header();
         for (ci, (name, _)) in case_list.iter().enumerate() {
             let pick = |r: &SeedRow| if man { r.manoeuvres[ci].clone() } else { r.cases[ci].clone() };
             let per: Vec<Metrics> = rows.iter().map(pick).collect();
@@ -462,25 +694,23 @@ pub fn evaluate_seeds(base: &Config, sim: &SimOptions, seeds: std::ops::RangeInc
             let wy = per.iter().map(|m| m.rms_err[2]).fold(0.0, f64::max);
             let ok = per.iter().filter(|m| m.tilt_max() <= 2.0).count();
             let worst = rows.iter().zip(&per).max_by(|a, b| a.1.tilt_max().total_cmp(&b.1.tilt_max())).map(|r| r.0.seed).unwrap_or(0);
-            out += &format!(
-                "{:<22} {:>9.3} {:>10.3} {:>10.3} {:>9.2} {:>12.3} {:>8}/{:<2} {:>10}\n",
-                name,
-                wr,
-                wp,
-                med,
-                med / orc_med,
-                wy,
-                ok,
-                rows.len(),
-                worst
-            );
+            out += &summary.line(&[
+                name.clone(),
+                num(wr, 3),
+                num(wp, 3),
+                num(med, 3),
+                if ratio_ok { num(med / orc_med, 2) } else { "-".into() },
+                num(wy, 3),
+                format!("{ok}/{}", rows.len()),
+                worst.to_string(),
+            ]);
         }
     }
     if let Some(rd) = &o.out {
-        std::fs::create_dir_all(rd).map_err(|e| format!("{}: {e}", rd.display()))?;
-        let p = rd.join("report.json");
-        std::fs::write(&p, serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?).map_err(|e| format!("{}: {e}", p.display()))?;
-        out += &format!("wrote {}\n", p.display());
+        let json = serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
+        let inputs: Vec<&Path> = config_path.into_iter().collect();
+        write_reports(rd, &inputs, &[("report.json", json.into_bytes())])?;
+        out += &format!("wrote {}\n", rd.join("report.json").display());
     }
     Ok(out)
 }
@@ -490,7 +720,6 @@ mod plot {
     use super::RunData;
     use crate::estimator::Estimate;
     use plotters::prelude::*;
-    use std::path::Path;
 
     type R = Result<(), Box<dyn std::error::Error>>;
 
@@ -499,8 +728,8 @@ mod plot {
         (len / n).max(1)
     }
 
-    pub fn attitude_error(path: &Path, errs: &[(f64, [f64; 3])], est: &[Estimate]) -> R {
-        let root = SVGBackend::new(path, (1200, 500)).into_drawing_area();
+    pub fn attitude_error(svg: &mut String, errs: &[(f64, [f64; 3])], est: &[Estimate]) -> R {
+        let root = SVGBackend::with_string(svg, (1200, 500)).into_drawing_area();
         root.fill(&WHITE)?;
         let t1 = errs.last().map(|e| e.0).unwrap_or(1.0).max(1e-3);
         let m = errs.iter().flat_map(|e| e.1.iter()).map(|v| v.abs()).fold(0.5f64, f64::max).min(60.0) * 1.1;
@@ -540,8 +769,8 @@ mod plot {
         Ok(())
     }
 
-    pub fn bias(path: &Path, est: &[Estimate], data: &RunData) -> R {
-        let root = SVGBackend::new(path, (1200, 500)).into_drawing_area();
+    pub fn bias(svg: &mut String, est: &[Estimate], data: &RunData) -> R {
+        let root = SVGBackend::with_string(svg, (1200, 500)).into_drawing_area();
         root.fill(&WHITE)?;
         let t1 = est.last().map(|e| e.t).unwrap_or(1.0).max(1e-3);
         let all = est.iter().flat_map(|e| e.bias.iter()).chain(data.bias.iter().flat_map(|b| b.iter()));
@@ -588,36 +817,57 @@ pub fn parse_seeds(s: &str) -> Result<std::ops::RangeInclusive<u64>, String> {
 
 /// The `evaluate` subcommand.
 #[derive(clap::Args, Debug)]
+#[command(group(clap::ArgGroup::new("what").required(true).args(["input", "seeds", "realdata"])))]
 pub struct EvaluateArgs {
-    /// gyrocomp config (default: built-in defaults).
-    #[arg(long)]
+    /// gyrocomp config (TOML). Default: the built-in defaults. With --seeds its
+    /// [thermal] section is replaced by each simulated unit's calibration.
+    #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
-    /// A `gyrocomp simulate` directory.
-    #[arg(long, conflicts_with = "seeds")]
+    /// A `gyrocomp simulate` directory to replay and score, or with --reference a
+    /// candump log. One of --input, --seeds or --realdata is required.
+    #[arg(long, value_name = "DIR", conflicts_with = "seeds")]
     pub input: Option<PathBuf>,
-    /// Report directory (report.json and SVG plots).
-    #[arg(long)]
+    /// Report directory: report.json (and with --input attitude_error.svg,
+    /// bias.svg). Default: no report files.
+    #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
-    /// Also run the paper's three cases and print them with the default mode.
+    /// Also run the paper's three cases (startup_average, startup_thermal,
+    /// paper) and print them with the default mode. Off by default.
     #[arg(long)]
     pub ablation: bool,
-    /// Simulate and evaluate these seeds, A..B inclusive (needs --scenario).
-    #[arg(long)]
+    /// Simulate (in memory) and evaluate these seeds: A..B inclusive, or one
+    /// seed N. Required unless --input is given; needs --scenario.
+    #[arg(long, value_name = "A..B", requires = "scenario")]
     pub seeds: Option<String>,
-    #[arg(long, requires = "seeds")]
+    /// With --seeds: the scenario to simulate (static, chamber, paper, vehicle). Required with --seeds.
+    #[arg(long, value_name = "NAME", requires = "seeds")]
     pub scenario: Option<String>,
+    /// With --seeds, vehicle only: add emergency brakes and swerves of 0.65-0.8 g. Off by default.
     #[arg(long, requires = "seeds")]
     pub hard: bool,
-    /// The simulated runs start while the car is already driving.
+    /// With --seeds: the simulated runs start while the car is already
+    /// driving (urban, vehicle, paper). Default: a parked start.
     #[arg(long, requires = "seeds")]
     pub power_on_moving: bool,
-    #[arg(long, requires = "seeds")]
+    /// With --seeds: duration of each run, s (> 0). Default: the scenario's
+    /// (static 300, chamber 1800, paper and vehicle 800, urban 400; the
+    /// manoeuvres of paper and vehicle start at 350).
+    #[arg(long, value_name = "S", requires = "seeds", allow_negative_numbers = true, value_parser = crate::sim::cli::positive_seconds)]
     pub duration: Option<f64>,
-    /// Relative error of the thermal slope the estimator is given (with --seeds).
-    #[arg(long, default_value_t = 0.05)]
+    /// With --seeds: relative error of the thermal slope the estimator is
+    /// given, a fraction 0..1 (0.05 = each axis off by up to +-5 %).
+    #[arg(long, value_name = "FRACTION", allow_negative_numbers = true, value_parser = crate::sim::cli::fraction, default_value_t = 0.05)]
     pub thermal_error: f64,
-    /// Score from this time on, s.
-    #[arg(long, default_value_t = 10.0, visible_alias = "skip")]
+    /// Score from this time on, s after power-on (>= 0); the manoeuvres-only
+    /// scores start where the manoeuvres do. Alias: --skip.
+    #[arg(
+        long,
+        visible_alias = "skip",
+        value_name = "S",
+        allow_negative_numbers = true,
+        value_parser = crate::sim::cli::non_negative_seconds,
+        default_value_t = 10.0
+    )]
     pub score_from: f64,
     /// Real data: --reference, --realdata, --peers, --offset, --align-s (`gyrocomp::reference`).
     #[command(flatten)]
@@ -635,16 +885,17 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
     };
     let o = EvalOptions { score_from: a.score_from, ablation: a.ablation, out: a.out.clone() };
     let text = match (&a.input, &a.seeds) {
-        (Some(dir), None) => evaluate_dir(&cfg, dir, &o)?,
+        (Some(dir), None) => evaluate_dir_with(&cfg, dir, &o, a.config.as_deref())?,
         (None, Some(s)) => {
             let sc = a.scenario.as_deref().ok_or("--seeds needs --scenario")?;
+            crate::sim::cli::check_scenario(sc, a.hard, a.duration, &cfg.input.profile)?;
             let mut so = SimOptions::new(sc, 0);
             so.hard = a.hard;
             so.power_on_moving = a.power_on_moving;
             so.duration = a.duration;
             so.thermal_error = a.thermal_error;
             so.profile = cfg.input.profile.clone();
-            evaluate_seeds(&cfg, &so, parse_seeds(s)?, &o)?
+            evaluate_seeds_with(&cfg, &so, parse_seeds(s)?, &o, a.config.as_deref())?
         }
         _ => return Err("evaluate needs --input DIR or --seeds A..B --scenario NAME".into()),
     };

@@ -14,14 +14,29 @@ struct Cli {
 #[derive(Subcommand)]
 enum Cmd {
     /// Replay a candump -l log through the estimator; write output frames (and a CSV).
+    ///
+    /// Prints a summary (samples, drops by cause, time per mode) on stderr.
+    /// Needs --output, --csv or both. An output that is the input (the same
+    /// file after resolving links) is refused; outputs are written under a
+    /// temporary name and renamed only when the run succeeds.
+    #[command(group(clap::ArgGroup::new("outputs").required(true).multiple(true).args(["output", "csv"])))]
     Replay {
-        #[arg(long)]
+        /// Config file (TOML, see config/gyrocomp.toml). Default: the built-in defaults.
+        #[arg(long, value_name = "FILE")]
         config: Option<PathBuf>,
-        #[arg(long)]
+        /// Input log in `candump -l` format, one frame a line. Required.
+        #[arg(long, value_name = "IN.log")]
         input: PathBuf,
-        #[arg(long)]
+        /// Write the output frames here as a candump log (on the config's [can] interface), each
+        /// stamped with the time of the input frame that closed its sample.
+        /// At least one of --output and --csv is required.
+        #[arg(long, value_name = "OUT.log")]
         output: Option<PathBuf>,
-        #[arg(long)]
+        /// Write one CSV row per sample here: t (s from the first sample, by the
+        /// sample counter), roll, pitch, yaw (deg), rate_x..z (deg/s), bias_x..z
+        /// (deg/s), mode (0 fusion, 1 aided, 2 gyro only), temp (deg C).
+        /// At least one of --output and --csv is required.
+        #[arg(long, value_name = "EST.csv")]
         csv: Option<PathBuf>,
     },
     /// Fit the thermal bias curve from thermal-chamber runs (candump logs of a static sensor).
@@ -36,29 +51,50 @@ enum Cmd {
     /// empty or shorter than 120 s are refused by name. Details: the
     /// `gyrocomp::calibrate` module documentation.
     Calibrate {
-        #[arg(long)]
+        /// Config file (TOML): its [input] decodes the logs, its [thermal] t0 is
+        /// the curve's reference temperature. Default: the built-in defaults (t0 = 25 C).
+        #[arg(long, value_name = "FILE")]
         config: Option<PathBuf>,
-        /// One log per chamber run (one power cycle each).
-        #[arg(long, num_args = 1.., required = true)]
+        /// One log per chamber run (one power cycle each), candump -l format. Required.
+        #[arg(long, value_name = "RUN.log", num_args = 1.., required = true)]
         input: Vec<PathBuf>,
         /// Polynomial order: 1 (linear, as in the paper), 2 or 3.
         #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=3))]
         order: u8,
-        /// Write the fitted [thermal] section to this file.
-        #[arg(long)]
+        /// Write the fitted [thermal] section to this file (a config the daemon
+        /// accepts as it is). Default: not written.
+        #[arg(long, value_name = "OUT.toml")]
         write: Option<PathBuf>,
-        /// Write SVG plots into this directory.
-        #[arg(long)]
+        /// Write SVG plots into this directory. Default: no plots.
+        #[arg(long, value_name = "DIR")]
         plot: Option<PathBuf>,
     },
     /// Validate a config file and print the effective configuration.
-    CheckConfig { file: PathBuf },
+    ///
+    /// A bad value or a parse error is reported with its key and line; the
+    /// printed configuration has every key (defaults filled in, the sample
+    /// rate resolved from the profile, CAN IDs in hex) and is itself a valid
+    /// config file.
+    CheckConfig {
+        /// Config file to check (TOML). Required.
+        #[arg(value_name = "FILE")]
+        file: PathBuf,
+    },
     /// Run the daemon on the bus named by `[can] interface`.
+    ///
+    /// Reads the four input IDs, publishes the output frames, notifies
+    /// systemd (READY, WATCHDOG, STATUS); SIGHUP reloads the config, SIGTERM
+    /// saves the state and stops.
     Run {
-        #[arg(long)]
+        /// Config file (TOML, see config/gyrocomp.toml). Required.
+        #[arg(long, value_name = "FILE")]
         config: PathBuf,
     },
     /// Simulate a scenario: DIR/imu.log (ADIS on CAN), truth.csv, sensor.toml, bias.csv, scenario.toml, config.toml.
+    ///
+    /// The files are written under temporary names and renamed into DIR only
+    /// when the whole run succeeded; --model or --ranges inside DIR under an
+    /// output's name is refused.
     Simulate(gyrocomp::sim::cli::SimulateArgs),
     /// Replay a simulated run (or many seeds) and score it against the truth.
     Evaluate(gyrocomp::evaluate::EvaluateArgs),
@@ -105,10 +141,13 @@ fn main() -> ExitCode {
 }
 
 fn cmd_replay(config: Option<PathBuf>, input: PathBuf, output: Option<PathBuf>, csv: Option<PathBuf>) -> Result<(), String> {
-    let cfg = load_config(&config)?;
     if output.is_none() && csv.is_none() {
         return Err("replay needs --output and/or --csv".into());
     }
+    // the config is an input too (replay_files itself guards --input)
+    let outs: Vec<&std::path::Path> = output.iter().chain(&csv).map(PathBuf::as_path).collect();
+    gyrocomp::outfile::refuse_inputs_as_outputs(&config.iter().map(PathBuf::as_path).collect::<Vec<_>>(), &outs)?;
+    let cfg = load_config(&config)?;
     let files = ReplayFiles { input: &input, output: output.as_deref(), csv: csv.as_deref() };
     let sum = replay_files(&cfg, &files, None).map_err(|e| e.to_string())?;
     eprint!("replay {}:\n{}", input.display(), sum.render());

@@ -126,6 +126,17 @@ fn replay_never_destroys_its_input_or_leaves_a_half_written_output() {
         assert!(err.contains("refusing to overwrite an input"), "{err}");
         assert_eq!(std::fs::read(&input).unwrap(), log, "input changed");
     }
+    // --output or --csv that is the --config file
+    let cfg = d.path().join("c.toml");
+    std::fs::write(&cfg, "[estimator]\nmode = \"paper\"\n").unwrap();
+    for flag in ["--output", "--csv"] {
+        let o =
+            Command::new(bin()).arg("replay").arg("--config").arg(&cfg).arg("--input").arg(&input).arg(flag).arg(&cfg).output().unwrap();
+        assert!(!o.status.success());
+        assert!(String::from_utf8_lossy(&o.stderr).contains("refusing to overwrite an input"), "{flag}");
+        assert_eq!(std::fs::read_to_string(&cfg).unwrap(), "[estimator]\nmode = \"paper\"\n", "{flag} overwrote the config");
+    }
+    std::fs::remove_file(&cfg).unwrap();
     // a run that fails (no sample in the input) leaves an existing output as it was
     let out = d.path().join("out.log");
     std::fs::write(&out, b"earlier result\n").unwrap();

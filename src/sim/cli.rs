@@ -1,35 +1,62 @@
 //! The `simulate` subcommand's arguments and driver (main.rs stays thin).
+//!
+//! Arguments that mean nothing are refused with the reason: a duration that
+//! is not a positive number of seconds, `--hard` for a scenario without
+//! manoeuvres, a relative thermal-slope error outside 0..1. The files are
+//! written into a temporary directory inside `--out` and renamed into place
+//! only when the whole run succeeded, so a failed run leaves the files of an
+//! earlier run as they were; a `--model` or `--ranges` file that would be
+//! overwritten by an output is refused.
 
 use super::{model::SensorModel, simulate, SimOptions};
-use std::path::PathBuf;
+use crate::adis::builtin_profile;
+use crate::outfile::refuse_inputs_as_outputs;
+use std::path::{Path, PathBuf};
+
+/// The files `simulate` writes into its directory.
+pub const FILES: [&str; 6] = ["imu.log", "truth.csv", "sensor.toml", "bias.csv", "scenario.toml", "config.toml"];
+
+/// Scenarios that have no manoeuvres for `--hard` to make harder.
+const NO_MANOEUVRES: [&str; 3] = ["static", "chamber", "paper"];
 
 #[derive(clap::Args, Debug)]
 pub struct SimulateArgs {
-    /// static, chamber, paper, vehicle or urban.
-    #[arg(long)]
+    /// Scenario: static (bench, 300 s), chamber (at rest in a thermal chamber,
+    /// 1800 s), paper (800 s, gentle then a winding road from 350 s), vehicle
+    /// (800 s, gentle then 0.3-0.4 g manoeuvres from 350 s) or urban (400 s of
+    /// city driving: stops, tight turns, hills, turn-on bias up to 5 deg/s,
+    /// wheel speeds on the bus). Required.
+    #[arg(long, value_name = "NAME")]
     pub scenario: String,
-    #[arg(long, default_value_t = 1)]
+    /// Seed of every random draw (motion, sensor errors, noise, calibration);
+    /// the same seed and options give byte-identical files.
+    #[arg(long, value_name = "N", default_value_t = 1)]
     pub seed: u64,
-    /// Output directory.
-    #[arg(long)]
+    /// Output directory (created if needed). Required.
+    #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// vehicle: add short manoeuvres above 0.6 g.
+    /// vehicle only: add emergency brakes and swerves of 0.65-0.8 g to the
+    /// manoeuvres. Off by default.
     #[arg(long)]
     pub hard: bool,
-    /// Duration, s (default: the scenario's).
-    #[arg(long)]
+    /// Duration of the run, s (> 0). Default: the scenario's (static 300,
+    /// chamber 1800, paper and vehicle 800).
+    #[arg(long, value_name = "S", allow_negative_numbers = true, value_parser = positive_seconds)]
     pub duration: Option<f64>,
-    /// Part profile.
-    #[arg(long, default_value = "adis16448")]
+    /// Part profile (LSBs and sample rate of the log): adis16448, adis16405 or adis16465-1.
+    #[arg(long, value_name = "NAME", default_value = "adis16448")]
     pub profile: String,
     /// Use this sensor model (sensor.toml shape) instead of drawing one.
-    #[arg(long)]
+    /// Default: drawn from the scenario's ranges.
+    #[arg(long, value_name = "FILE")]
     pub model: Option<PathBuf>,
-    /// TOML file overriding the ranges the sensor errors are drawn from.
-    #[arg(long)]
+    /// TOML file overriding any subset of the ranges the sensor errors are
+    /// drawn from (src/sim/scenario.rs `Ranges`). Default: the scenario's ranges.
+    #[arg(long, value_name = "FILE")]
     pub ranges: Option<PathBuf>,
-    /// Relative error of the thermal slope written to DIR/config.toml.
-    #[arg(long, default_value_t = 0.05)]
+    /// Relative error of the thermal slope written to DIR/config.toml, as a
+    /// fraction (0.05 = each axis off by a factor uniform in 1 +- 5 %); 0..1.
+    #[arg(long, value_name = "FRACTION", allow_negative_numbers = true, value_parser = fraction, default_value_t = 0.05)]
     pub thermal_error: f64,
     /// Start while the car is already driving (paper, vehicle, urban).
     #[arg(long)]
@@ -50,8 +77,60 @@ pub fn parse_mounting(s: &str) -> Result<[f64; 3], String> {
     <[f64; 3]>::try_from(v).map_err(|_| bad())
 }
 
+/// clap value parser: a finite number of seconds > 0.
+pub fn positive_seconds(s: &str) -> Result<f64, String> {
+    let v: f64 = s.trim().parse().map_err(|_| format!("{s:?} is not a number of seconds"))?;
+    if !(v.is_finite() && v > 0.0) {
+        return Err(format!("a duration must be a finite number of seconds > 0, got {s}"));
+    }
+    Ok(v)
+}
+
+/// clap value parser: a finite number of seconds >= 0.
+pub fn non_negative_seconds(s: &str) -> Result<f64, String> {
+    let v: f64 = s.trim().parse().map_err(|_| format!("{s:?} is not a number of seconds"))?;
+    if !(v.is_finite() && v >= 0.0) {
+        return Err(format!("must be a finite number of seconds >= 0, got {s}"));
+    }
+    Ok(v)
+}
+
+/// clap value parser: a relative error as a fraction in 0..=1 (a factor of
+/// 1 +- more than 1 could flip the sign of the slope).
+pub fn fraction(s: &str) -> Result<f64, String> {
+    let v: f64 = s.trim().parse().map_err(|_| format!("{s:?} is not a number"))?;
+    if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+        return Err(format!(
+            "a relative error is a fraction from 0 to 1 (0.05 = 5 %), got {s}: a factor 1 +- {s} {}",
+            if v > 1.0 { "could flip the sign of the slope" } else { "means nothing" }
+        ));
+    }
+    Ok(v)
+}
+
+/// Refuse arguments that do not fit the scenario (shared with `evaluate --seeds`).
+pub fn check_scenario(scenario: &str, hard: bool, duration: Option<f64>, profile: &str) -> Result<(), String> {
+    if !super::scenario::SCENARIOS.contains(&scenario) {
+        return Err(format!("unknown scenario {scenario:?} (known: {})", super::scenario::SCENARIOS.join(", ")));
+    }
+    if hard && NO_MANOEUVRES.contains(&scenario) {
+        return Err(format!(
+            "--hard adds emergency brakes and swerves to the vehicle scenario's manoeuvres; scenario {scenario} has none to make harder"
+        ));
+    }
+    let p = builtin_profile(profile)
+        .ok_or_else(|| format!("unknown profile {profile:?} (known: {})", crate::adis::BUILTIN_PROFILES.join(", ")))?;
+    if let Some(d) = duration {
+        if d * p.rate_hz < 1.0 {
+            return Err(format!("--duration {d} s is shorter than one sample of {profile} (1/{} s)", p.rate_hz));
+        }
+    }
+    Ok(())
+}
+
 impl SimulateArgs {
     pub fn options(&self) -> Result<SimOptions, String> {
+        check_scenario(&self.scenario, self.hard, self.duration, &self.profile)?;
         let mut o = SimOptions::new(&self.scenario, self.seed);
         o.hard = self.hard;
         o.duration = self.duration;
@@ -68,11 +147,57 @@ impl SimulateArgs {
         }
         Ok(o)
     }
+
+    fn inputs(&self) -> Vec<&Path> {
+        [self.model.as_deref(), self.ranges.as_deref()].into_iter().flatten().collect()
+    }
+}
+
+/// Refuse a destination that is an input or a directory.
+fn check_destinations(inputs: &[&Path], outs: &[PathBuf]) -> Result<(), String> {
+    let refs: Vec<&Path> = outs.iter().map(PathBuf::as_path).collect();
+    refuse_inputs_as_outputs(inputs, &refs)?;
+    for p in outs {
+        if p.is_dir() {
+            return Err(format!("{} is a directory: simulate writes a file of that name", p.display()));
+        }
+    }
+    Ok(())
 }
 
 pub fn run(a: &SimulateArgs) -> Result<(), String> {
     let o = a.options()?;
-    let f = simulate(&o, &a.out)?;
+    let inputs = a.inputs();
+    check_destinations(&inputs, &FILES.map(|f| a.out.join(f)))?;
+    let created = !a.out.exists();
+    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    let r = simulate_into(a, &o, &inputs);
+    if r.is_err() && created {
+        let _ = std::fs::remove_dir(&a.out); // only when still empty
+    }
+    r
+}
+
+/// Simulate into a temporary directory inside `--out`, then rename every
+/// file into place (all checks first, then the renames).
+fn simulate_into(a: &SimulateArgs, o: &SimOptions, inputs: &[&Path]) -> Result<(), String> {
+    let stage = tempfile::Builder::new()
+        .prefix(".simulate-")
+        .tempdir_in(&a.out)
+        .map_err(|e| format!("cannot create a temporary directory in {}: {e}", a.out.display()))?;
+    let f = simulate(o, stage.path())?;
+    let mut names: Vec<_> = std::fs::read_dir(stage.path())
+        .and_then(|d| d.map(|e| e.map(|e| e.file_name())).collect::<Result<Vec<_>, _>>())
+        .map_err(|e| format!("{}: {e}", stage.path().display()))?;
+    names.sort();
+    let dests: Vec<PathBuf> = names.iter().map(|n| a.out.join(n)).collect();
+    check_destinations(inputs, &dests)?;
+    for (n, d) in names.iter().zip(&dests) {
+        std::fs::rename(stage.path().join(n), d).map_err(|e| format!("cannot move the new {} into place: {e}", d.display()))?;
+    }
+    if let Ok(d) = std::fs::File::open(&a.out) {
+        let _ = d.sync_all();
+    }
     eprintln!(
         "simulate {}{}{} seed {}: {} samples ({:.1} s at {} Hz) -> {}",
         f.info.scenario,
@@ -82,7 +207,7 @@ pub fn run(a: &SimulateArgs) -> Result<(), String> {
         f.samples,
         f.info.duration_s,
         f.info.rate_hz,
-        f.dir.display()
+        a.out.display()
     );
     if let Some(w) = &f.info.wheel_speeds {
         eprintln!(
@@ -98,4 +223,28 @@ pub fn run(a: &SimulateArgs) -> Result<(), String> {
         eprint!("drive statistics (also in scenario.toml [stats]):\n{}{}", super::stats::DriveStats::header(), s.row(f.info.seed));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn meaningless_values_are_refused_with_the_reason() {
+        assert!(positive_seconds("-5").unwrap_err().contains("> 0"));
+        assert!(positive_seconds("0").is_err());
+        assert!(positive_seconds("inf").is_err());
+        assert!(positive_seconds("5s").unwrap_err().contains("not a number"));
+        assert_eq!(positive_seconds("60").unwrap(), 60.0);
+        assert!(fraction("2").unwrap_err().contains("flip the sign"));
+        assert!(fraction("-0.1").is_err());
+        assert_eq!(fraction("0.05").unwrap(), 0.05);
+        assert!(non_negative_seconds("-1").is_err());
+        assert!(check_scenario("static", true, None, "adis16448").unwrap_err().contains("--hard"));
+        assert!(check_scenario("paper", true, None, "adis16448").is_err());
+        check_scenario("vehicle", true, None, "adis16448").unwrap();
+        assert!(check_scenario("vehicel", false, None, "adis16448").unwrap_err().contains("known: static"));
+        assert!(check_scenario("static", false, Some(0.001), "adis16448").unwrap_err().contains("one sample"));
+        assert!(check_scenario("static", false, None, "adis9").unwrap_err().contains("unknown profile"));
+    }
 }
