@@ -1054,7 +1054,7 @@ mod tests {
         assert_eq!((c.estimator.use_magnetometer, c.mekf.vehicle), (AutoBool::Auto, AutoBool::Bool(false)));
         let c = Config::parse("[estimator]\nuse_magnetometer = true\nmode = \"robust\"", "t").unwrap();
         assert_eq!((c.estimator.use_magnetometer, c.estimator.mode), (AutoBool::Bool(true), Mode::Mekf));
-        assert_eq!(Config::parse(&c.to_toml(), "x").unwrap(), c);
+        assert_eq!(Config::parse(&c.to_toml(), "x").unwrap(), c.effective());
     }
 
     #[test]

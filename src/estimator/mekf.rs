@@ -408,6 +408,7 @@ impl Mekf {
         self.rest.reset();
         self.switching.reset();
         self.dwell = 0.0;
+        self.still_speed = None;
         self.after_gap = true;
     }
 

@@ -345,32 +345,59 @@ fn mekf_a_turn_at_speed_is_not_roll() {
 
 #[test]
 fn mekf_relevels_when_a_standstill_disagrees_for_long() {
-    // A turn-on bias of 15 deg/s on x, five times the prior sigma: the first
-    // standstill's zero-rate update is refused by the gate at first, then a
-    // flagged re-level takes it, never a silent lock-out.
-    let bias = [15.0, -2.0, 1.0];
-    let mut m = Motion::new(204.8, bias, 1.0, -2.0, 0.0);
+    // After learning, a 150 ms dropout during which the unit was knocked 45
+    // deg in pitch (the gyro never saw it): far outside what the short gap
+    // widens the attitude by, so the standstill's gravity is refused at
+    // first, then a flagged re-level takes it, never a silent lock-out.
+    let mut m = Motion::new(204.8, [0.1, -0.1, 0.2], 0.0, 0.0, 0.0);
     let mut e = mekf("");
+    let th = 45f64.to_radians();
     let mut est = Estimate::default();
     let mut relevel_at = None;
     let mut gated = false;
-    for k in 0..(204.8 * 15.0) as u32 {
+    let gap = 31; // samples, 0.15 s
+    for k in 0..(204.8 * 35.0) as u32 {
         let t = k as f64 / 204.8;
-        est = e.step(&m.step([0.0; 3], [0.0; 3]));
-        gated |= est.flags & flags::GATED != 0;
+        let mut s = m.step([0.0; 3], [0.0; 3]);
+        let k0 = (204.8 * 20.0) as u32;
+        if (k0..k0 + gap).contains(&k) {
+            continue;
+        }
+        if k >= k0 + gap {
+            s.accel = [th.sin(), 0.0, -th.cos()];
+            s.steps = if k == k0 + gap { gap + 1 } else { 1 };
+        }
+        est = e.step(&s);
+        gated |= t > 20.0 && est.flags & flags::GATED != 0;
         if est.flags & flags::RELEVEL != 0 && relevel_at.is_none() {
             relevel_at = Some(t);
         }
     }
-    assert!(gated, "the bias was taken at once");
+    assert!(gated, "the jump was taken at once");
     let t = relevel_at.expect("no re-level flagged");
-    assert!(t < 6.0, "re-levelled at {t}");
+    assert!(t > 20.0 && t < 25.0, "re-levelled at {t}");
+    assert!((est.pitch - 45.0).abs() < 0.2, "pitch {}", est.pitch);
+    assert!(est.flags & flags::STANDSTILL != 0);
+    assert_eq!(e.mekf_counters().unwrap().relevels, 1);
+}
+
+#[test]
+fn mekf_learns_a_turn_on_bias_five_times_its_prior_sigma() {
+    // 15 deg/s on x, five times the prior sigma of 3 deg/s: learned at the
+    // first standstill all the same.
+    let bias = [15.0, -2.0, 1.0];
+    let mut m = Motion::new(204.8, bias, 1.0, -2.0, 0.0);
+    let mut e = mekf("");
+    let mut est = Estimate::default();
+    for _ in 0..(204.8 * 15.0) as u32 {
+        est = e.step(&m.step([0.0; 3], [0.0; 3]));
+    }
     for i in 0..3 {
         assert!((est.bias[i] - bias[i]).abs() < 0.02, "{:?}", est.bias);
     }
     let tr = m.euler();
     assert!(angle_err(est.roll, tr[0]) < 0.1 && angle_err(est.pitch, tr[1]) < 0.1, "{est:?}");
-    assert_eq!(e.mekf_counters().unwrap().relevels, 1);
+    assert!(est.flags & flags::STANDSTILL != 0);
 }
 
 #[test]
