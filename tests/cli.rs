@@ -47,7 +47,7 @@ fn options(help: &str) -> Vec<(String, String)> {
     out
 }
 
-const SUBCOMMANDS: [&str; 7] = ["replay", "run", "check-config", "calibrate", "simulate", "evaluate", "gap"];
+const SUBCOMMANDS: [&str; 8] = ["replay", "run", "check-config", "calibrate", "simulate", "evaluate", "gap", "import"];
 
 #[test]
 fn every_option_of_every_subcommand_explains_itself() {
@@ -78,7 +78,7 @@ fn required_options_are_required_and_marked() {
         ("check-config", "<FILE>", "<FILE>"),
         ("calibrate", "--input <RUN.log>...", "--input"),
         ("simulate", "--scenario <NAME> --out <DIR>", "--out"),
-        ("evaluate", "<--input <DIR>|--seeds <A..B>>", "--input"),
+        ("evaluate", "<--input <DIR>|--seeds <A..B>|--realdata <DIR>>", "--input"),
     ];
     for (sub, usage, flag) in cases {
         let help = text(&gyrocomp(&[sub, "--help"]).stdout);

@@ -42,26 +42,31 @@ use std::path::{Path, PathBuf};
 /// The `import` subcommand.
 #[derive(clap::Args, Debug, Clone)]
 pub struct ImportArgs {
-    /// The recording: t,gx,gy,gz,ax,ay,az[,mx,my,mz][,temp] (s, deg/s, g, gauss, deg C), gzip allowed.
-    #[arg(long)]
+    /// The recording: t,gx,gy,gz,ax,ay,az[,mx,my,mz][,temp] (s, deg/s, g,
+    /// gauss, deg C), gzip allowed. Required.
+    #[arg(long, value_name = "IN.csv")]
     pub csv: PathBuf,
-    /// The candump -l log to write.
-    #[arg(long)]
+    /// The candump -l log to write. Required.
+    #[arg(long, value_name = "OUT.log")]
     pub out: PathBuf,
-    /// Sample rate, Hz (default: 1 / the median spacing of t).
-    #[arg(long)]
+    /// Sample rate, Hz. Default: 1 / the median spacing of t.
+    #[arg(long, value_name = "HZ")]
     pub rate: Option<f64>,
-    /// Use this profile's scales where they cover the data (adis16448, adis16405, adis16465-1).
-    #[arg(long)]
+    /// Use this profile's scales where they cover the data (adis16448,
+    /// adis16405, adis16465-1). Default: the finest LSB per channel whose
+    /// 16-bit range covers the data with headroom.
+    #[arg(long, value_name = "NAME")]
     pub profile: Option<String>,
-    /// Write the matching config snippet ([input], and what the recording implies).
-    #[arg(long)]
+    /// Write the matching config snippet ([input], and what the recording
+    /// implies: magnetometer or thermal curve off). Default: none.
+    #[arg(long, value_name = "SNIPPET.toml")]
     pub config_out: Option<PathBuf>,
     /// The recording's body axes as FRD: e.g. x,-y,-z for a FLU recording.
     #[arg(long, default_value = "x,y,z")]
     pub axes: String,
-    /// Merge this candump log (another bus, e.g. the vehicle's) into the output by timestamp; gzip allowed.
-    #[arg(long)]
+    /// Merge this candump log (another bus, e.g. the vehicle's) into the
+    /// output by timestamp; gzip allowed. Default: none.
+    #[arg(long, value_name = "CAR.log")]
     pub can: Option<PathBuf>,
     /// Interface name on the IMU's lines.
     #[arg(long, default_value = "can0")]

@@ -37,20 +37,27 @@ use std::path::{Path, PathBuf};
 /// The options `evaluate` takes for real data (flattened into `EvaluateArgs`).
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct ReferenceArgs {
-    /// Score --input LOG (a candump log) against a measured reference CSV t,roll,pitch,yaw[,valid][,rest] (gzip allowed).
-    #[arg(long, requires = "input", conflicts_with_all = ["seeds", "realdata", "ablation"])]
+    /// Score --input LOG (a candump log) against a measured reference CSV
+    /// t,roll,pitch,yaw[,valid][,rest] (deg; gzip allowed). Default: none
+    /// (--input is a simulate directory).
+    #[arg(long, value_name = "REF.csv", requires = "input", conflicts_with_all = ["seeds", "realdata", "ablation"])]
     pub reference: Option<PathBuf>,
-    /// Import and evaluate every recording folder under DIR (imu.csv.gz + reference.csv.gz [+ can.log.gz]); ours and VQF in one table.
-    #[arg(long, conflicts_with_all = ["input", "seeds", "ablation"])]
+    /// Import and evaluate every recording folder under DIR (imu.csv.gz +
+    /// reference.csv.gz [+ can.log.gz]); ours and VQF in one table. One of
+    /// --input, --seeds or --realdata is required.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["input", "seeds", "ablation"])]
     pub realdata: Option<PathBuf>,
-    /// Also run VQF (vqf-rs, 9D with the magnetometer, 6D without) on the same decoded samples, scored identically.
+    /// Also run VQF (vqf-rs, 9D with the magnetometer, 6D without) on the
+    /// same decoded samples, scored identically. Default: off (always on with
+    /// --realdata).
     #[arg(long)]
     pub peers: bool,
     /// Reference time of the log's first sample, s.
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    #[arg(long, value_name = "S", default_value_t = 0.0, allow_hyphen_values = true)]
     pub offset: f64,
-    /// Without a rest phase in the reference: estimate the mount over the first S seconds (0: no mount).
-    #[arg(long, default_value_t = 5.0)]
+    /// Without a rest phase in the reference: estimate the mount over the
+    /// first S seconds (0: no mount), s.
+    #[arg(long, value_name = "S", default_value_t = 5.0)]
     pub align_s: f64,
 }
 

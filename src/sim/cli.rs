@@ -59,13 +59,16 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "FRACTION", allow_negative_numbers = true, value_parser = fraction, default_value_t = 0.05)]
     pub thermal_error: f64,
     /// Start while the car is already driving (paper, vehicle, urban).
+    /// Default: a parked start.
     #[arg(long)]
     pub power_on_moving: bool,
     /// The sensor mounted rotated in the vehicle: the sensor frame in the
-    /// vehicle frame, Z-Y-X, deg (e.g. 0,0,90).
+    /// vehicle frame, Z-Y-X, deg (e.g. 0,0,90). Default: aligned with the vehicle.
     #[arg(long, value_name = "ROLL,PITCH,YAW", allow_hyphen_values = true)]
     pub mounting: Option<String>,
-    /// urban: also write a [speed] section (the wheel speeds of DIR/car.dbc) into DIR/config.toml.
+    /// urban: also write a [speed] section (the wheel speeds of DIR/car.dbc)
+    /// into DIR/config.toml. Default: no [speed] (the wheel-speed frames are
+    /// on the bus either way).
     #[arg(long)]
     pub speed: bool,
 }
