@@ -19,7 +19,7 @@
 //! and quantisation remain) from the true attitude at the start of the
 //! manoeuvres, and reports its max roll/pitch error over the rest of the run.
 
-use crate::adis::{InputIds, RawFrame};
+use crate::adis::RawFrame;
 use crate::config::{Config, Mode};
 use crate::estimator::Estimate;
 use crate::output::OutFrame;
@@ -45,7 +45,9 @@ pub struct RunData {
 
 enum Source {
     Log(PathBuf),
-    Frames(Vec<[[u8; 8]; 4]>),
+    /// The whole bus of an in-memory run (IMU frames and wheel speeds), and
+    /// the DBC text that describes its wheel speeds (urban).
+    Frames(Vec<sim::BusFrame>, Option<&'static str>),
 }
 
 impl RunData {
@@ -68,17 +70,29 @@ impl RunData {
         let mut truth = Vec::new();
         let mut bias = Vec::new();
         let mut frames = Vec::new();
-        for (tr, m, raw) in sim::samples(&run, o.seed) {
+        for b in sim::bus(&run, o.seed) {
+            let tr = &b.truth;
             truth.push(TruthRow { t: tr.t, att: [tr.roll, tr.pitch, tr.yaw], rate: tr.rate, f: tr.f, temp: tr.temp });
-            bias.push(m.bias);
-            frames.push(raw.encode());
+            bias.push(b.measured.bias);
+            frames.extend_from_slice(b.frames());
         }
         let unit_config = Some(Config::parse(&run.config_toml, "simulated unit").map_err(|e| e.to_string())?);
-        Ok(RunData { info: run.info, model: run.model, truth, bias, unit_config, source: Source::Frames(frames) })
+        let dbc = run.wheel.is_some().then_some(sim::wheel::EXAMPLE_DBC);
+        Ok(RunData { info: run.info, model: run.model, truth, bias, unit_config, source: Source::Frames(frames, dbc) })
     }
 
     /// Run the estimator over the run's input.
     pub fn estimates(&self, cfg: &Config) -> Result<(Vec<Estimate>, [f64; 3]), String> {
+        self.estimates_with(cfg, |_| {})
+    }
+
+    /// `estimates`, with `prepare` run on the estimator before the first
+    /// sample (a saved bias as the prior, say; in-memory runs only).
+    pub fn estimates_with(
+        &self,
+        cfg: &Config,
+        prepare: impl FnOnce(&mut crate::estimator::Estimator),
+    ) -> Result<(Vec<Estimate>, [f64; 3]), String> {
         let mut est = Vec::with_capacity(self.truth.len());
         match &self.source {
             Source::Log(p) => {
@@ -86,21 +100,26 @@ impl RunData {
                     replay_files(cfg, &ReplayFiles { input: p, output: None, csv: None }, Some(&mut est)).map_err(|e| e.to_string())?;
                 Ok((est, sum.mode_seconds))
             }
-            Source::Frames(fr) => {
+            Source::Frames(fr, dbc) => {
                 struct Keep<'a>(&'a mut Vec<Estimate>);
                 impl Sink for Keep<'_> {
                     fn output(&mut self, e: &Estimate, _: &[OutFrame; 4]) {
                         self.0.push(*e);
                     }
                 }
-                let mut pipe = Pipeline::new(cfg);
-                let ids = InputIds::DEFAULT.all();
-                let mut sink = Keep(&mut est);
-                for (k, f) in fr.iter().enumerate() {
-                    let t_us = sim::LOG_EPOCH_S * 1_000_000 + (self.truth[k].t * 1e6).round() as u64;
-                    for i in 0..4 {
-                        pipe.push(t_us + 120 * i as u64, RawFrame::classic(ids[i], &f[i]), &mut sink);
+                // the wheel speeds of an in-memory run are described by its own DBC text
+                let speed = match (cfg.speed.enabled(), dbc) {
+                    (false, _) => None,
+                    (true, Some(text)) => {
+                        Some(crate::speed::SpeedDecoder::from_dbc_text(text, "car.dbc", &cfg.speed).map_err(|e| e.to_string())?)
                     }
+                    (true, None) => crate::speed::load(cfg).map_err(|e| e.to_string())?,
+                };
+                let mut pipe = Pipeline::with_speed(cfg, speed);
+                prepare(pipe.estimator_mut());
+                let mut sink = Keep(&mut est);
+                for f in fr {
+                    pipe.push(f.t_us, RawFrame::classic(f.id, &f.data), &mut sink);
                 }
                 Ok((est, pipe.mode_seconds()))
             }
@@ -613,6 +632,7 @@ pub fn evaluate_seeds_with(
             if let Some(u) = &data.unit_config {
                 c.thermal = u.thermal.clone();
                 c.mounting = u.mounting.clone();
+                c.speed = u.speed.clone();
             }
             let (est, mode_s) = data.estimates(&c)?;
             if orc.is_none() {
@@ -849,6 +869,10 @@ pub struct EvaluateArgs {
     /// driving (urban, vehicle, paper). Default: a parked start.
     #[arg(long, requires = "seeds")]
     pub power_on_moving: bool,
+    /// With --seeds (urban): the estimator uses the car's wheel speeds
+    /// ([speed] of each run's config). Default: IMU only.
+    #[arg(long, requires = "seeds")]
+    pub speed: bool,
     /// With --seeds: duration of each run, s (> 0). Default: the scenario's
     /// (static 300, chamber 1800, paper and vehicle 800, urban 400; the
     /// manoeuvres of paper and vehicle start at 350).
@@ -892,6 +916,7 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
             let mut so = SimOptions::new(sc, 0);
             so.hard = a.hard;
             so.power_on_moving = a.power_on_moving;
+            so.speed = a.speed;
             so.duration = a.duration;
             so.thermal_error = a.thermal_error;
             so.profile = cfg.input.profile.clone();

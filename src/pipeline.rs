@@ -42,6 +42,72 @@ pub struct Pipeline {
     pub mode_samples: [u64; 3],
     period: f64,
     speed: Option<SpeedInput>,
+    /// Rate check: the first sample's time, and periods counted since (by DATA_CNT).
+    first_t_us: Option<u64>,
+    last_t_us: u64,
+    steps: u64,
+}
+
+/// What the pipeline and its estimator did, for the replay summary and the
+/// daemon's status: a user must never see "fusion 0 %" without the reason.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Report {
+    /// The default filter's counters (None in the paper's modes).
+    pub mekf: Option<crate::estimator::mekf::MekfCounters>,
+    /// The magnetometer in use (None: not decided yet, or paper mode).
+    pub magnetometer: Option<bool>,
+    /// The vehicle model in use (None in the paper's modes).
+    pub vehicle: Option<bool>,
+    /// Speed frames decoded and dropped (None without `[speed]`).
+    #[serde(skip)]
+    pub speed: Option<SpeedCounts>,
+    /// The configured sample rate and the one the frame timestamps show
+    /// (Hz), once 5 s of samples are in.
+    pub rate: Option<(f64, f64)>,
+}
+
+impl Report {
+    /// The rates when they disagree by more than 1 %.
+    pub fn rate_mismatch(&self) -> Option<(f64, f64)> {
+        self.rate.filter(|(c, m)| (m / c - 1.0).abs() > 0.01)
+    }
+
+    /// Human lines (for the replay summary).
+    pub fn render(&self) -> String {
+        let mut s = String::new();
+        if let Some(c) = &self.mekf {
+            s += &format!(
+                "standstill {:.1} s, re-levels {}, updates refused by the gate {:.1} s (longest run {:.1} s), velocity re-acquired {} times\n",
+                c.rest_s, c.relevels, c.gated_s, c.refused_max_s, c.reacquired
+            );
+            s += &match self.vehicle {
+                Some(true) => "vehicle model: on (no lateral/vertical velocity at the rear axle)\n".to_string(),
+                Some(false) => {
+                    "vehicle model: off (the motion is not a ground vehicle's: low-passed gravity and a bounded velocity)\n".to_string()
+                }
+                None => String::new(),
+            };
+            s += &match self.magnetometer {
+                Some(true) => format!("magnetometer: used, disturbed {:.1} s (no heading updates then)\n", c.mag_disturbed_s),
+                Some(false) => {
+                    "magnetometer: not used (off in the config, absent, zero or implausible for Earth's field): yaw from the gyro alone\n"
+                        .to_string()
+                }
+                None => String::new(),
+            };
+        }
+        if let Some(sp) = &self.speed {
+            let used = self.mekf.map_or(0.0, |c| c.speed_used_s);
+            s += &format!(
+                "speed frames: decoded {}, dropped wrong_dlc {} out_of_range {} implausible {}; speed used {:.1} s\n",
+                sp.decoded, sp.wrong_dlc, sp.out_of_range, sp.implausible, used
+            );
+        }
+        if let Some((c, m)) = self.rate_mismatch() {
+            s += &format!("WARNING: the configured rate {c} Hz disagrees with the frame timestamps ({m:.3} Hz) by more than 1 %: dt comes from the configured rate ([input] rate_hz)\n");
+        }
+        s
+    }
 }
 
 /// The vehicle's speed frames: decoder, the latest speed and its time.
@@ -84,6 +150,9 @@ impl Pipeline {
             mode_samples: [0; 3],
             period: 1.0 / p.rate_hz,
             speed,
+            first_t_us: None,
+            last_t_us: 0,
+            steps: 0,
         }
     }
 
@@ -105,6 +174,14 @@ impl Pipeline {
             Push::Pending => {}
             Push::Dropped(d) => sink.dropped(t_us, d),
             Push::Sample(s) => {
+                if self.first_t_us.is_none() || s.steps == 0 {
+                    // (re)start the rate check at the first sample and at a counter restart
+                    self.first_t_us = Some(s.t_us);
+                    self.steps = 0;
+                } else {
+                    self.steps += s.steps as u64;
+                }
+                self.last_t_us = s.t_us;
                 if let Some(sp) = &mut self.speed {
                     // held until it is older than the timeout (frame times)
                     let fresh = sp.last.filter(|(t, _)| s.t_us.saturating_sub(*t) <= sp.timeout_us).map(|(_, v)| v);
@@ -122,6 +199,18 @@ impl Pipeline {
 
     pub fn counters(&self) -> &InputCounters {
         &self.assembler.counters
+    }
+
+    /// What the estimator did (for summaries and the status).
+    pub fn report(&self) -> Report {
+        let span = self.first_t_us.map_or(0.0, |f| self.last_t_us.saturating_sub(f) as f64 * 1e-6);
+        Report {
+            mekf: self.estimator.mekf_counters(),
+            magnetometer: self.estimator.magnetometer(),
+            vehicle: self.estimator.mekf().map(|m| m.vehicle()),
+            speed: self.speed_counts(),
+            rate: (span >= 5.0).then(|| (1.0 / self.period, self.steps as f64 / span)),
+        }
     }
 
     /// Speed frames decoded and dropped by cause (None without a speed source).

@@ -33,6 +33,8 @@ pub struct Summary {
     /// The first bad lines: (line number, reason).
     #[serde(skip)]
     pub bad_examples: Vec<(u64, LineError)>,
+    /// What the estimator did.
+    pub report: crate::pipeline::Report,
 }
 
 impl Summary {
@@ -49,6 +51,7 @@ impl Summary {
         self.input = *pipe.counters();
         self.mode_seconds = pipe.mode_seconds();
         self.mode_samples = pipe.mode_samples;
+        self.report = pipe.report();
     }
 
     /// The human summary printed to stderr.
@@ -72,7 +75,7 @@ impl Summary {
             s += &format!(" {} {}", d.name(), c.get(d));
         }
         s += &format!(
-            "\ntime per mode: fusion {:.1} s ({:.1} %), blend {:.1} s ({:.1} %), gyro_only {:.1} s ({:.1} %)\n",
+            "\ntime per mode: fusion with bias learning {:.1} s ({:.1} %), aided {:.1} s ({:.1} %), gyro only {:.1} s ({:.1} %)\n",
             self.mode_seconds[0],
             pct(self.mode_seconds[0]),
             self.mode_seconds[1],
@@ -80,6 +83,7 @@ impl Summary {
             self.mode_seconds[2],
             pct(self.mode_seconds[2])
         );
+        s += &self.report.render();
         s
     }
 }
@@ -380,7 +384,8 @@ pub fn replay_files(cfg: &Config, files: &ReplayFiles<'_>, keep: Option<&mut Vec
         }
         None => None,
     };
-    let mut pipe = Pipeline::new(cfg);
+    let speed = crate::speed::load(cfg).map_err(|e| ReplayError::Refused(format!("config: {e}")))?;
+    let mut pipe = Pipeline::with_speed(cfg, speed);
     let mut sink = ReplaySink { log: log.as_mut(), csv: csv.as_mut(), keep, err: None };
     let sum = run_threaded(&mut pipe, input, &mut sink).map_err(|source| ReplayError::Read { path: ip, source })?;
     if let Some(e) = sink.err.take() {

@@ -131,10 +131,16 @@ fn now_us() -> u64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_micros() as u64).unwrap_or(0)
 }
 
-/// Open the bus with receive filters for the input IDs.
-pub fn open_bus(cfg: &Config) -> std::io::Result<CanSocket> {
+/// Open the bus with receive filters for the input IDs (and the vehicle's
+/// speed message when `[speed]` is configured).
+pub fn open_bus(cfg: &Config, speed: Option<(u32, bool)>) -> std::io::Result<CanSocket> {
     let s = CanSocket::open(&cfg.can.interface)?;
-    let filters: Vec<CanFilter> = cfg.input.ids.all().iter().map(|id| CanFilter::new(*id, EFF_RTR_MASK)).collect();
+    let mut filters: Vec<CanFilter> = cfg.input.ids.all().iter().map(|id| CanFilter::new(*id, EFF_RTR_MASK)).collect();
+    if let Some((id, ext)) = speed {
+        // an extended ID matches only with the EFF flag set in id and mask
+        let flag = if ext { libc::CAN_EFF_FLAG } else { 0 };
+        filters.push(CanFilter::new(id | flag, EFF_RTR_MASK));
+    }
     s.set_filters(&filters)?;
     set_rcvbuf(&s, RX_BUFFER);
     if cfg.daemon.error_frames {
@@ -188,7 +194,15 @@ pub fn state_dir(cfg: &Config) -> Option<PathBuf> {
 
 /// Build a pipeline, with the saved state as its prior when there is one.
 fn build_pipeline(cfg: &Config, store: Option<&Store>, carry: Option<crate::estimator::Learned>) -> Pipeline {
-    let mut pipe = Pipeline::new(cfg);
+    // the config was checked at load; a DBC gone since is an IMU-only run, logged
+    let speed = crate::speed::load(cfg).unwrap_or_else(|e| {
+        warn!(error = %e, "speed source unusable: IMU only");
+        None
+    });
+    if let Some(d) = &speed {
+        info!(message = d.message(), id = format!("{:#x}", d.id().0), "vehicle speed from the bus");
+    }
+    let mut pipe = Pipeline::with_speed(cfg, speed);
     if let Some(l) = carry {
         pipe.estimator_mut().set_prior(l);
         return pipe;
@@ -261,6 +275,7 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
 
     let mut store = state_dir(&cfg).map(|d| Store::new(&d));
     let mut pipe = build_pipeline(&cfg, store.as_ref(), None);
+    let mut rate_warned = false;
     let mut sink = BusSink::new(&tx, &shell);
     let mut backoff = Duration::from_millis(100);
     let mut open_log = RateLimited::new(Duration::from_secs(10));
@@ -276,7 +291,7 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
     'outer: loop {
         // (Re)open the bus, with backoff, still answering signals meanwhile.
         let bound = ifindex(&cfg.can.interface);
-        let sock = match open_bus(&cfg) {
+        let sock = match open_bus(&cfg, pipe.speed_id()) {
             Ok(s) => {
                 backoff = Duration::from_millis(100);
                 info!(interface = %cfg.can.interface, "bus open");
@@ -411,6 +426,12 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
                     if now.duration_since(last_status) >= Duration::from_secs(1) {
                         last_status = now;
                         notifier.status(&status_line(&sink.last, silent, &pipe, &shell));
+                        if !rate_warned {
+                            if let Some((c, m)) = pipe.report().rate_mismatch() {
+                                rate_warned = true;
+                                warn!(configured_hz = c, timestamps_hz = m, "the configured sample rate disagrees with the frame timestamps by more than 1 %; dt comes from [input] rate_hz");
+                            }
+                        }
                     }
                     if now.duration_since(last_save).as_secs_f64() >= cfg.daemon.save_every_s {
                         last_save = now;
@@ -436,11 +457,24 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
 
 fn status_line(last: &Option<Estimate>, silent: bool, pipe: &Pipeline, shell: &ShellCounters) -> String {
     let c = pipe.counters();
-    let mode = |m: u8| ["fusion", "blend", "gyro_only"].get(m as usize).copied().unwrap_or("?");
+    let mode = |m: u8| ["fusion", "aided", "gyro_only"].get(m as usize).copied().unwrap_or("?");
+    let r = pipe.report();
+    let mut what = String::new();
+    if let Some(k) = &r.mekf {
+        what = format!("; standstill {:.0} s, re-levels {}, refused {:.0} s", k.rest_s, k.relevels, k.gated_s);
+        if let Some(sp) = &r.speed {
+            what += &format!(", speed used {:.0} s ({} frames, {} dropped)", k.speed_used_s, sp.decoded, sp.dropped());
+        }
+        what += match r.magnetometer {
+            Some(true) => ", magnetometer on",
+            Some(false) => ", magnetometer off",
+            None => "",
+        };
+    }
     match last {
         None => format!("waiting for samples; dropped {}", c.dropped()),
         Some(e) => format!(
-            "{}mode {} rates {:.2} {:.2} {:.2} deg/s bias {:.4} {:.4} {:.4} deg/s; samples {} dropped {} lost {} tx_dropped {}",
+            "{}mode {} rates {:.2} {:.2} {:.2} deg/s bias {:.4} {:.4} {:.4} deg/s; samples {} dropped {} lost {} tx_dropped {}{what}",
             if silent { "BUS SILENT; " } else { "" },
             mode(e.mode),
             e.rate[0],

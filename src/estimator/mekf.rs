@@ -180,7 +180,7 @@ struct Outcome {
 }
 
 /// Counters the filter keeps for the summary and the status.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct MekfCounters {
     pub relevels: u64,
     pub rest_s: f64,

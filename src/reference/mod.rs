@@ -112,10 +112,34 @@ pub fn magnetometer_configured(cfg: &Config) -> bool {
     cfg.estimator.use_magnetometer != crate::config::AutoBool::Bool(false) && p.magnetometer && p.magn_lsb > 0.0
 }
 
+/// Ours over a run: roll, pitch, yaw (deg) and mode per sample, and whether
+/// the magnetometer was used.
+pub type Ours = (Vec<[f64; 3]>, Vec<u8>, bool);
+
+/// Our estimator over a log's frames, through the very pipeline the daemon
+/// and `replay` run (so the vehicle's speed frames reach it when `[speed]` is
+/// configured): roll, pitch, yaw (deg) and mode per sample, and whether it
+/// used the magnetometer.
+pub fn run_ours_log<R: std::io::Read>(log: R, cfg: &Config, name: &str) -> Result<Ours, String> {
+    struct Keep(Vec<[f64; 3]>, Vec<u8>);
+    impl crate::pipeline::Sink for Keep {
+        fn output(&mut self, e: &crate::estimator::Estimate, _: &[crate::output::OutFrame; 4]) {
+            self.0.push([e.roll, e.pitch, e.yaw]);
+            self.1.push(e.mode);
+        }
+    }
+    let speed = crate::speed::load(cfg).map_err(|e| format!("config: {e}"))?;
+    let mut pipe = crate::pipeline::Pipeline::with_speed(cfg, speed);
+    let mut keep = Keep(Vec::new(), Vec::new());
+    crate::replay::run(&mut pipe, log, &mut keep).map_err(|e| format!("{name}: {e}"))?;
+    let magn = magnetometer_configured(cfg) && pipe.estimator().magnetometer().unwrap_or(true);
+    Ok((keep.0, keep.1, magn))
+}
+
 /// Our estimator over the samples: roll, pitch, yaw (deg) and mode per
 /// sample, and whether it used the magnetometer (yaw is scored, and VQF run
 /// 9D, only then).
-pub fn run_ours(samples: &[Sample], cfg: &Config) -> (Vec<[f64; 3]>, Vec<u8>, bool) {
+pub fn run_ours(samples: &[Sample], cfg: &Config) -> Ours {
     let mut e = Estimator::new(cfg);
     let mut att = Vec::with_capacity(samples.len());
     let mut modes = Vec::with_capacity(samples.len());
@@ -152,12 +176,28 @@ pub struct Evaluation {
 
 /// Evaluate decoded samples against the reference: ours, and VQF with `peers`.
 pub fn evaluate_samples(samples: &[Sample], cfg: &Config, r: &Reference, o: &RefOptions) -> Result<Evaluation, String> {
+    let ours = run_ours(samples, cfg);
+    evaluate_with(samples, ours, cfg, r, o)
+}
+
+/// `evaluate_samples` with our estimates given (`run_ours_log` on the log
+/// the samples were decoded from).
+pub fn evaluate_with(
+    samples: &[Sample],
+    ours: Ours,
+    cfg: &Config,
+    r: &Reference,
+    o: &RefOptions,
+) -> Result<Evaluation, String> {
+    if ours.0.len() != samples.len() {
+        return Err(format!("{} estimates for {} decoded samples", ours.0.len(), samples.len()));
+    }
     let period = 1.0 / cfg.profile().rate_hz;
     let ts = sample_times(samples, period);
     let refq = r.at_times(&ts, o.offset);
     let w = alignment_window(r, o.align_s, o.offset)?;
     let a = align(samples, &ts, &refq, &w)?;
-    let (att, modes, magn) = run_ours(samples, cfg);
+    let (att, modes, magn) = ours;
     let spec = ScoreSpec { ts: &ts, refq: &refq, align: &a, skip: o.skip, period, yaw: magn };
     let (sc, errors) = score(&att, Some(&modes), &spec);
     let mut results = vec![Scored { name: "ours".into(), scores: sc, errors, modes: Some(modes) }];
@@ -332,8 +372,10 @@ pub fn evaluate_reference(cfg: &Config, log: &Path, reference: &Path, out: Optio
     let name = log.display().to_string();
     let file = std::fs::File::open(log).map_err(|e| format!("cannot open {name}: {e}"))?;
     let d = decode(file, cfg, &name)?;
+    let file = std::fs::File::open(log).map_err(|e| format!("cannot open {name}: {e}"))?;
+    let ours = run_ours_log(file, cfg, &name)?;
     let r = read_reference(reference)?;
-    let ev = evaluate_samples(&d.samples, cfg, &r, o)?;
+    let ev = evaluate_with(&d.samples, ours, cfg, &r, o)?;
     let c = &d.counters;
     let mut s = format!(
         "{name}: {} samples ({} lines, {} bad; {} frames of other IDs; lost {} in {} gaps)\n",

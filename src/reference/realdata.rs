@@ -11,7 +11,7 @@
 //! `errors.svg`; `realdata.json` holds every row.
 
 use super::refcsv::read_reference;
-use super::{decode, evaluate_samples, table_header, Evaluation, RefOptions};
+use super::{decode, evaluate_with, run_ours_log, table_header, Evaluation, RefOptions};
 use crate::config::Config;
 use crate::import::{import_to_memory, overlay, ImportOptions, Imported};
 use crate::outfile::write_atomic;
@@ -55,7 +55,8 @@ pub fn evaluate_recording(dir: &Path, base: &Config, o: &RefOptions) -> Result<R
     }
     let r = read_reference(&dir.join("reference.csv.gz"))?;
     let o = RefOptions { peers: true, ..o.clone() };
-    let eval = evaluate_samples(&d.samples, &config, &r, &o).map_err(|e| format!("{name}: {e}"))?;
+    let ours = run_ours_log(&log[..], &config, &name)?;
+    let eval = evaluate_with(&d.samples, ours, &config, &r, &o).map_err(|e| format!("{name}: {e}"))?;
     Ok(Recording { name, import, config, log, eval })
 }
 
