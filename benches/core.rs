@@ -51,7 +51,14 @@ fn bench(c: &mut Criterion) {
     let paper =
         Config::parse("[estimator]\nmode = \"paper\"\nwarmup_s = 1.0\nlearn_s = 5.0\n[thermal]\np1 = [0.002, 0.0044, 0.0192]", "bench")
             .unwrap();
-    for (name, cfg) in [("step_default_robust", &cfg), ("step_paper", &paper)] {
+    let speed = Config::parse(
+        "[estimator]\nwarmup_s = 1.0\nlearn_s = 5.0\n[thermal]\np1 = [0.002, 0.0044, 0.0192]\n\
+         [speed]\ndbc = \"car.dbc\"\nmessage = \"WHEEL_SPEEDS\"\nsignals = [\"RL\", \"RR\"]",
+        "bench",
+    )
+    .unwrap();
+    for (name, cfg) in [("step_default_mekf", &cfg), ("step_default_mekf_with_speed", &speed), ("step_paper", &paper)] {
+        let with_speed = cfg.speed.enabled();
         let mut est = Estimator::new(cfg);
         // steady state: past warm-up and learning
         for s in &ss[..20_000] {
@@ -60,6 +67,10 @@ fn bench(c: &mut Criterion) {
         let mut i = 20_000;
         g.bench_function(name, |b| {
             b.iter(|| {
+                if with_speed {
+                    // a 50 Hz wheel speed: a new frame every fourth sample
+                    est.set_speed(Some(black_box(10.0)), i % 4 == 0);
+                }
                 let e = est.step(black_box(&ss[i]));
                 i += 1;
                 if i == ss.len() {
@@ -69,6 +80,28 @@ fn bench(c: &mut Criterion) {
             })
         });
     }
+    // The yardstick: VQF (vqf-rs, a port of the published C++ VQF), 9D, on
+    // the same samples converted to its conventions (FLU, m/s^2, rad/s).
+    let flu = |v: [f64; 3]| [v[0], -v[1], -v[2]];
+    let d2r = std::f64::consts::PI / 180.0;
+    let conv: Vec<([f64; 3], [f64; 3], [f64; 3])> =
+        ss.iter().map(|s| (flu(s.gyro).map(|w| w * d2r), flu(s.accel).map(|a| a * 9.80665), flu(s.magn))).collect();
+    let mut vqf = vqf_rs::VQF::new(1.0 / 204.8, None, None, None);
+    for (gy, ac, mg) in &conv[..20_000] {
+        vqf.update(*gy, *ac, Some(*mg));
+    }
+    let mut i = 20_000;
+    g.bench_function("vqf_rs_9d_update", |b| {
+        b.iter(|| {
+            let (gy, ac, mg) = &conv[i];
+            vqf.update(black_box(*gy), black_box(*ac), Some(black_box(*mg)));
+            i += 1;
+            if i == conv.len() {
+                i = 20_000;
+            }
+            vqf.quat_9d()
+        })
+    });
     g.finish();
 
     let frames = raw_samples(100_000);

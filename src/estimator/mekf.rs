@@ -235,6 +235,12 @@ pub struct Mekf {
     xy_rate2: f64,
     /// g0 of the facade (|f| at power-on, g).
     g0: f64,
+    /// The bias sigma as of the last update (the covariance changes only there).
+    bias_sigma_cache: [f64; 3],
+    /// Low-pass gains for the step length `alpha_dt`.
+    alpha_dt: f64,
+    alpha_acc: f64,
+    alpha_1s: f64,
     /// The last tick's outcome, held until the next tick.
     mode: u8,
     tick_flags: u16,
@@ -282,6 +288,10 @@ impl Mekf {
             vehicle: true,
             xy_rate2: 0.0,
             g0: 1.0,
+            bias_sigma_cache: [0.0; 3],
+            alpha_dt: -1.0,
+            alpha_acc: 0.0,
+            alpha_1s: 0.0,
             mode: 2,
             tick_flags: 0,
             speed: None,
@@ -321,6 +331,7 @@ impl Mekf {
             self.cov[SC][SC] = self.p.init_scale_sigma * self.p.init_scale_sigma;
         }
         self.bias_known = known;
+        self.bias_sigma_cache = self.bias_sigma();
         // with the car's own speed it is a vehicle
         self.vehicle = self.p.vehicle != Vehicle::Off || self.p.speed_aided;
         self.xy_rate2 = 0.0;
@@ -410,6 +421,7 @@ impl Mekf {
         self.dwell = 0.0;
         self.still_speed = None;
         self.after_gap = true;
+        self.bias_sigma_cache = self.bias_sigma();
     }
 
     /// One sample; returns (mode, flags).
@@ -421,13 +433,25 @@ impl Mekf {
             self.bias[i] += s.dbias[i] * D2R;
         }
         let w = [gyro[0] - self.bias[0], gyro[1] - self.bias[1], gyro[2] - self.bias[2]];
+        let wn = norm(&w);
+        if dt != self.alpha_dt {
+            // the low-pass gains, for this step length (constant but after gaps)
+            self.alpha_dt = dt;
+            self.alpha_acc = (dt / self.p.accel_tau).min(1.0);
+            self.alpha_1s = dt.min(1.0);
+        }
         if dt > 0.0 {
             let dq = quat::from_rotvec(&[w[0] * dt, w[1] * dt, w[2] * dt]);
             self.q = quat::mul(&self.q, &dq);
-            quat::normalise(&mut self.q);
+            // first-order renormalisation: |q| stays within 1e-15 of 1
+            let n2 = self.q[0] * self.q[0] + self.q[1] * self.q[1] + self.q[2] * self.q[2] + self.q[3] * self.q[3];
+            let k = 1.5 - 0.5 * n2;
+            for v in self.q.iter_mut() {
+                *v *= k;
+            }
             self.c = quat::to_matrix(&self.q);
             let f = rotate(&self.c, &s.accel);
-            let al = (dt / self.p.accel_tau).min(1.0);
+            let al = self.alpha_acc;
             self.f_lp = Some(match self.f_lp {
                 None => f,
                 Some(lp) => [lp[0] + (f[0] - lp[0]) * al, lp[1] + (f[1] - lp[1]) * al, lp[2] + (f[2] - lp[2]) * al],
@@ -445,9 +469,9 @@ impl Mekf {
                 a.dv[i] += f[i] * gl * dt;
             }
             a.t += dt;
-            a.turned += norm(&w) * dt;
+            a.turned += wn * dt;
             if self.vehicle && self.p.vehicle == Vehicle::Auto && !self.p.speed_aided {
-                self.xy_rate2 += (w[0] * w[0] + w[1] * w[1] - self.xy_rate2) * (dt / 1.0).min(1.0);
+                self.xy_rate2 += (w[0] * w[0] + w[1] * w[1] - self.xy_rate2) * self.alpha_1s;
                 // a car body never tilts past 45 deg either
                 if self.xy_rate2 > self.p.handheld_rate * self.p.handheld_rate || self.c[2][2] < std::f64::consts::FRAC_1_SQRT_2 {
                     self.vehicle = false;
@@ -473,7 +497,7 @@ impl Mekf {
         let dec = self.switching.classify(&s.accel, s.g0);
         // Before the first standstill any steady rate may be the bias: the
         // first rest after power-on initialises it, whatever its size.
-        let bs = if self.bias_known { self.bias_sigma() } else { [f64::INFINITY; 3] };
+        let bs = if self.bias_known { self.bias_sigma_cache } else { [f64::INFINITY; 3] };
         let rest = if s.suspect {
             self.rest.reset();
             None
@@ -481,7 +505,7 @@ impl Mekf {
             Some(self.rest.push(&gyro, &s.accel, dt.max(1e-6), s.g0, &self.bias, bs))
         };
         let at_rest = rest.is_some_and(|r| r.rest);
-        let turn = norm(&w) > self.p.turn_rate;
+        let turn = wn > self.p.turn_rate;
         let quiet = dec.band == Band::Inner && !dec.jerk && !turn && !s.suspect;
         self.dwell = if quiet { self.dwell + dt } else { 0.0 };
         let a = &mut self.acc;
@@ -505,9 +529,13 @@ impl Mekf {
         }
         if self.acc.t + 1e-9 >= self.p.tick_s {
             self.tick(s.temp);
-        }
-        if !self.state_is_finite() {
-            // cannot happen with finite input; never let a NaN out
+            self.bias_sigma_cache = self.bias_sigma();
+            if !self.state_is_finite() {
+                // cannot happen with finite input; never let a NaN out
+                self.started = false;
+                fl |= flags::RESYNC;
+            }
+        } else if !self.q[0].is_finite() {
             self.started = false;
             fl |= flags::RESYNC;
         }
@@ -793,20 +821,30 @@ impl Mekf {
     /// tilt and the bias only where allowed (Joseph form keeps P right for
     /// the restricted gain). Accumulates into `dx`.
     fn update(&mut self, h: &[f64; N], nu: f64, r: f64, gain: Gain, gate: f64) -> Upd {
+        // most rows have one to three non-zero entries
+        let mut nz = [0usize; N];
+        let mut n = 0;
+        for (j, v) in h.iter().enumerate() {
+            if *v != 0.0 {
+                nz[n] = j;
+                n += 1;
+            }
+        }
+        let nz = &nz[..n];
         let p = &self.cov;
         let mut u = [0.0; N];
         for i in 0..N {
             let mut s = 0.0;
-            for j in 0..N {
+            for &j in nz {
                 s += p[i][j] * h[j];
             }
             u[i] = s;
         }
         let mut s = r;
         let mut hdx = 0.0;
-        for i in 0..N {
-            s += h[i] * u[i];
-            hdx += h[i] * self.dx[i];
+        for &j in nz {
+            s += h[j] * u[j];
+            hdx += h[j] * self.dx[j];
         }
         if s.is_nan() || s <= 0.0 || s.is_infinite() {
             return Upd::Skipped;
@@ -819,6 +857,7 @@ impl Mekf {
         for i in 0..N {
             k[i] = u[i] / s;
         }
+        let full = gain.tilt && gain.bias;
         if !gain.tilt {
             k[TH] = 0.0;
             k[TH + 1] = 0.0;
@@ -832,11 +871,22 @@ impl Mekf {
             self.dx[i] += k[i] * nu;
         }
         let p = &mut self.cov;
-        for i in 0..N {
-            for j in 0..=i {
-                let v = p[i][j] - k[i] * u[j] - u[i] * k[j] + s * k[i] * k[j];
-                p[i][j] = v;
-                p[j][i] = v;
+        if full {
+            // the optimal gain: Joseph reduces to P - u u^T / s
+            for i in 0..N {
+                for j in 0..=i {
+                    let v = p[i][j] - k[i] * u[j];
+                    p[i][j] = v;
+                    p[j][i] = v;
+                }
+            }
+        } else {
+            for i in 0..N {
+                for j in 0..=i {
+                    let v = p[i][j] - k[i] * u[j] - u[i] * k[j] + s * k[i] * k[j];
+                    p[i][j] = v;
+                    p[j][i] = v;
+                }
             }
         }
         Upd::Fused

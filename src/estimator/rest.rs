@@ -48,6 +48,9 @@ pub struct RestDetector {
     held: f64,
     /// The low-passed specific force when they began.
     anchor: [f64; 3],
+    /// The low-pass gain for the step length `alpha_dt`.
+    alpha_dt: f64,
+    alpha: f64,
 }
 
 /// What the detector says after one sample.
@@ -79,6 +82,8 @@ impl RestDetector {
             accel_var: 0.0,
             held: 0.0,
             anchor: [0.0; 3],
+            alpha_dt: -1.0,
+            alpha: 0.0,
         }
     }
 
@@ -104,7 +109,11 @@ impl RestDetector {
             self.started = true;
             self.held = 0.0;
         }
-        let a = (dt / self.p.tau_s).min(1.0);
+        if dt != self.alpha_dt {
+            self.alpha_dt = dt;
+            self.alpha = (dt / self.p.tau_s).min(1.0);
+        }
+        let a = self.alpha;
         let mut dg = 0.0;
         let mut da = 0.0;
         for k in 0..3 {

@@ -182,13 +182,7 @@ pub fn evaluate_samples(samples: &[Sample], cfg: &Config, r: &Reference, o: &Ref
 
 /// `evaluate_samples` with our estimates given (`run_ours_log` on the log
 /// the samples were decoded from).
-pub fn evaluate_with(
-    samples: &[Sample],
-    ours: Ours,
-    cfg: &Config,
-    r: &Reference,
-    o: &RefOptions,
-) -> Result<Evaluation, String> {
+pub fn evaluate_with(samples: &[Sample], ours: Ours, cfg: &Config, r: &Reference, o: &RefOptions) -> Result<Evaluation, String> {
     if ours.0.len() != samples.len() {
         return Err(format!("{} estimates for {} decoded samples", ours.0.len(), samples.len()));
     }
