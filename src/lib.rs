@@ -6,6 +6,7 @@
 //! [`candump`] log files, [`replay`], and the daemon.
 
 pub mod adis;
+pub mod align;
 pub mod calibrate;
 pub mod candump;
 pub mod config;

@@ -107,6 +107,14 @@ enum Cmd {
     ///
     /// Scales, counter and the config snippet: the `gyrocomp::import` module documentation.
     Import(gyrocomp::import::ImportArgs),
+    /// Propose the [mounting] rotation of a sensor from a recording of its vehicle.
+    ///
+    /// Roll and pitch from the gravity the standstills show (their mean: a
+    /// single stop may be on a slope), yaw from the line along which the
+    /// vehicle accelerates and brakes while driving straight, forward from
+    /// the pull-aways after the standstills. Prints the evidence and the
+    /// [mounting] section.
+    Align(gyrocomp::align::AlignArgs),
 }
 
 fn load_config(p: &Option<PathBuf>) -> Result<Config, String> {
@@ -130,6 +138,7 @@ fn main() -> ExitCode {
         Cmd::Evaluate(a) => gyrocomp::evaluate::run(&a),
         Cmd::Gap(a) => gyrocomp::gap::cli(&a),
         Cmd::Import(a) => gyrocomp::import::run(&a),
+        Cmd::Align(a) => gyrocomp::align::run(&a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

@@ -47,7 +47,7 @@ fn options(help: &str) -> Vec<(String, String)> {
     out
 }
 
-const SUBCOMMANDS: [&str; 8] = ["replay", "run", "check-config", "calibrate", "simulate", "evaluate", "gap", "import"];
+const SUBCOMMANDS: [&str; 9] = ["replay", "run", "check-config", "calibrate", "simulate", "evaluate", "gap", "import", "align"];
 
 #[test]
 fn every_option_of_every_subcommand_explains_itself() {

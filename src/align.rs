@@ -1,0 +1,221 @@
+//! `gyrocomp align`: propose the `[mounting] rotation` of a sensor from a
+//! recording of the vehicle it sits in.
+//!
+//! - Roll and pitch of the mounting: the specific force at the vehicle's
+//!   standstills is gravity alone, seen in the sensor frame. Every standstill
+//!   (the estimator's own detector, `[rest]`) gives a direction; their mean
+//!   is taken, because a single stop may be on a slope (each stop's tilt is
+//!   printed: their spread is the road's).
+//! - Yaw of the mounting: a vehicle accelerates and brakes along its own x
+//!   axis. In the levelled sensor frame, the horizontal specific force while
+//!   driving straight (|yaw rate| < 2 deg/s) and accelerating or braking
+//!   (> 0.05 g) lies along one line; its principal direction is the
+//!   vehicle's x axis. Forward is the way the vehicle pulls away after its
+//!   standstills.
+//!
+//! The result is printed as a `[mounting]` section, with the evidence.
+
+use crate::adis::{Assembler, Sample};
+use crate::config::Config;
+use crate::estimator::quat;
+use crate::estimator::rest::{RestDetector, RestParams};
+use std::path::PathBuf;
+
+const D2R: f64 = std::f64::consts::PI / 180.0;
+
+/// The `align` subcommand.
+#[derive(clap::Args, Debug)]
+pub struct AlignArgs {
+    /// The recording: a candump -l log of the sensor in its vehicle, with
+    /// standstills and some straight acceleration or braking. Required.
+    #[arg(long, value_name = "LOG")]
+    pub input: PathBuf,
+    /// gyrocomp config (TOML) for the input's profile, IDs and `[rest]`
+    /// thresholds; its `[mounting]` is ignored. Default: built-in defaults.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+}
+
+/// What `align` found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Alignment {
+    /// Mounting roll, pitch, yaw (deg), Z-Y-X, the sensor frame in the vehicle frame.
+    pub rotation: [f64; 3],
+    /// Each standstill: start (s), length (s), and the tilt it shows (roll, pitch deg).
+    pub rests: Vec<(f64, f64, [f64; 2])>,
+    /// Straight acceleration samples used for the yaw, and how far they
+    /// spread about their line (deg, 1-sigma); None when too few.
+    pub yaw_evidence: Option<(usize, f64)>,
+    /// Pull-aways that told forward from backward.
+    pub pull_aways: usize,
+}
+
+impl Alignment {
+    pub fn render(&self) -> String {
+        let mut s = String::new();
+        for (t, len, [r, p]) in &self.rests {
+            s += &format!("standstill at {t:.1} s for {len:.1} s: gravity says roll {r:.2} pitch {p:.2} deg\n");
+        }
+        match self.yaw_evidence {
+            Some((n, spread)) => s += &format!(
+                "yaw: {n} samples of straight acceleration or braking (spread {spread:.1} deg about their line), forward from {} pull-aways\n",
+                self.pull_aways
+            ),
+            None => s += "yaw: not enough straight acceleration or braking (> 0.05 g, |yaw rate| < 2 deg/s): yaw left at 0\n",
+        }
+        s += &format!(
+            "\n[mounting]\nrotation = [{:.2}, {:.2}, {:.2}]   # deg: roll, pitch, yaw of the sensor in the vehicle\n",
+            self.rotation[0], self.rotation[1], self.rotation[2]
+        );
+        s
+    }
+}
+
+/// Find the mounting from decoded samples (sensor frame).
+pub fn align(samples: &[Sample], cfg: &Config) -> Result<Alignment, String> {
+    let p = cfg.profile();
+    let r = &cfg.rest;
+    let mut det = RestDetector::new(RestParams {
+        tau_s: r.tau_s,
+        min_s: r.min_s,
+        gyro_dev: r.gyro_dev_dps * D2R,
+        accel_dev: r.accel_dev_g,
+        band: r.band,
+        rate: r.rate_dps * D2R,
+        drift: r.drift_g,
+    });
+    let dt = 1.0 / p.rate_hz;
+    // g0 over the first second, as the estimator does
+    let n0 = (p.rate_hz as usize).clamp(1, samples.len().max(1));
+    let g0 = samples.iter().take(n0).map(|s| norm(&s.accel)).sum::<f64>() / n0 as f64;
+    // 1. standstills and their mean specific force
+    let mut rests: Vec<(usize, usize, [f64; 3])> = Vec::new();
+    let mut cur: Option<(usize, [f64; 3], usize)> = None;
+    // the gyro at the standstills is its bias (deg/s)
+    let mut bias_sum = [0.0; 3];
+    let mut bias_n = 0usize;
+    for (k, s) in samples.iter().enumerate() {
+        let g = s.gyro.map(|v| v * D2R);
+        let st = det.push(&g, &s.accel, dt, g0, &[0.0; 3], [f64::INFINITY; 3]);
+        if st.rest {
+            for i in 0..3 {
+                bias_sum[i] += s.gyro[i];
+            }
+            bias_n += 1;
+        }
+        match (st.rest, &mut cur) {
+            (true, Some((_, sum, n))) => {
+                for i in 0..3 {
+                    sum[i] += s.accel[i];
+                }
+                *n += 1;
+            }
+            (true, None) => cur = Some((k, s.accel, 1)),
+            (false, Some((start, sum, n))) => {
+                rests.push((*start, *n, sum.map(|v| v / *n as f64)));
+                cur = None;
+            }
+            (false, None) => {}
+        }
+    }
+    if let Some((start, sum, n)) = cur {
+        rests.push((start, n, sum.map(|v| v / n as f64)));
+    }
+    let bias = bias_sum.map(|v| v / bias_n.max(1) as f64);
+    if rests.is_empty() {
+        return Err("no standstill found (gyro and accelerometer quiet for [rest] min_s): roll and pitch need one".into());
+    }
+    let mut gm = [0.0; 3];
+    for (_, n, f) in &rests {
+        let u = norm(f);
+        for i in 0..3 {
+            gm[i] += f[i] / u * *n as f64;
+        }
+    }
+    let (roll, pitch) = crate::ekf::tilt_from_accel(&gm);
+    let level = quat::matrix_from_euler(roll, pitch, 0.0);
+    // 2. straight acceleration in the levelled frame: its principal line
+    let (mut sxx, mut sxy, mut syy, mut n) = (0.0, 0.0, 0.0, 0usize);
+    let mut lp = [0.0; 3];
+    let mut wz_lp = 0.0;
+    let a = (dt / 0.5).min(1.0);
+    let mut horiz = Vec::with_capacity(samples.len());
+    for s in samples {
+        let f = quat::rotate(&level, &s.accel);
+        let w = quat::rotate(&level, &[s.gyro[0] - bias[0], s.gyro[1] - bias[1], s.gyro[2] - bias[2]]);
+        for i in 0..3 {
+            lp[i] += (f[i] - lp[i]) * a;
+        }
+        wz_lp += (w[2] - wz_lp) * a;
+        horiz.push([lp[0], lp[1]]);
+        let h2 = lp[0] * lp[0] + lp[1] * lp[1];
+        if wz_lp.abs() < 2.0 && h2 > 0.05 * 0.05 {
+            sxx += lp[0] * lp[0];
+            sxy += lp[0] * lp[1];
+            syy += lp[1] * lp[1];
+            n += 1;
+        }
+    }
+    let mut yaw = 0.0;
+    let mut evidence = None;
+    let mut pull_aways = 0;
+    if n >= (p.rate_hz as usize) {
+        // principal axis of the 2x2 scatter
+        let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+        let (c, s) = (angle.cos(), angle.sin());
+        let along = sxx * c * c + 2.0 * sxy * c * s + syy * s * s;
+        let across = (sxx * s * s - 2.0 * sxy * c * s + syy * c * c).max(0.0);
+        let spread = (across / along.max(1e-12)).sqrt().atan() / D2R;
+        // forward: the mean specific force over the 3 s after each standstill
+        let mut fwd = 0.0;
+        for (start, len, _) in &rests {
+            let end = start + len;
+            let to = (end + (3.0 * p.rate_hz) as usize).min(horiz.len());
+            if end >= to {
+                continue;
+            }
+            let m: f64 = horiz[end..to].iter().map(|h| h[0] * c + h[1] * s).sum::<f64>() / (to - end) as f64;
+            if m.abs() > 0.02 {
+                fwd += m.signum();
+                pull_aways += 1;
+            }
+        }
+        let forward = if fwd < 0.0 { angle + std::f64::consts::PI } else { angle };
+        // the vehicle's x axis appears at `forward` in the levelled sensor
+        // frame: the sensor is turned by -forward in the vehicle
+        yaw = crate::ekf::wrap_pi(-forward);
+        evidence = Some((n, spread));
+    }
+    let rotation = [roll / D2R, pitch / D2R, yaw / D2R];
+    let rests = rests
+        .iter()
+        .map(|(start, len, f)| {
+            let (r, p) = crate::ekf::tilt_from_accel(f);
+            (*start as f64 * dt, *len as f64 * dt, [r / D2R, p / D2R])
+        })
+        .collect();
+    Ok(Alignment { rotation, rests, yaw_evidence: evidence, pull_aways })
+}
+
+/// The command: decode the log, align, print.
+pub fn run(a: &AlignArgs) -> Result<(), String> {
+    let cfg = match &a.config {
+        Some(p) => Config::load(p).map_err(|e| e.to_string())?,
+        None => Config::default(),
+    };
+    let name = a.input.display().to_string();
+    let file = std::fs::File::open(&a.input).map_err(|e| format!("cannot open {name}: {e}"))?;
+    let mut asm = Assembler::new(cfg.profile(), cfg.input.ids);
+    let mut samples = Vec::new();
+    crate::replay::for_each_sample(file, &mut asm, |s| samples.push(*s)).map_err(|(line, e)| format!("{name} line {line}: {e}"))?;
+    if samples.is_empty() {
+        return Err(format!("{name}: no complete IMU sample"));
+    }
+    let al = align(&samples, &cfg)?;
+    print!("{}", al.render());
+    Ok(())
+}
+
+fn norm(v: &[f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
