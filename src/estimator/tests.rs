@@ -512,3 +512,24 @@ fn thermal_disabled_for_a_part_without_temperature() {
         assert_eq!(est.flags & flags::THERMAL_CLAMP, 0);
     }
 }
+
+#[test]
+fn mekf_learns_the_thermal_slope_from_standstills_at_different_temperatures() {
+    // Not calibrated (p1 = 0), the unit warms from 20 to 40 deg C standing:
+    // the bias the standstill measures against temperature gives the slope.
+    let truth = [0.004, -0.006, 0.008];
+    let mut e = mekf("[thermal]\nlearn = true\nlearn_after_s = 10.0\nlearn_min_spread = 5.0");
+    let n = (204.8 * 600.0) as u32;
+    for k in 0..n {
+        let temp = 20.0 + 20.0 * k as f64 / n as f64;
+        let b = [0.3 + truth[0] * (temp - 25.0), -0.2 + truth[1] * (temp - 25.0), 0.1 + truth[2] * (temp - 25.0)];
+        let mut s = rest(k as u16, b, 0.0, temp);
+        s.magn = [0.2, 0.0, 0.4];
+        e.step(&s);
+    }
+    let p1 = e.thermal().p1;
+    for i in 0..3 {
+        assert!((p1[i] - truth[i]).abs() < 0.1 * truth[i].abs(), "axis {i}: learned {p1:?} vs {truth:?}");
+    }
+    assert!(e.slope_state().is_some());
+}
