@@ -73,5 +73,80 @@ fn realdata_table_ours_and_vqf() {
         if r["alignment"]["looks_at_rest"].as_bool() == Some(true) {
             assert!(tr < 2.0, "{name}: VQF tilt RMS {tr} deg");
         }
+        // Ours (issue 11): no divergence, and within reach of VQF on the same
+        // samples wherever the mount came from a window at rest. (Not every
+        // RMS is at or below VQF's: see the README's real-data section.)
+        let u = &r["ours"];
+        if r["alignment"]["looks_at_rest"].as_bool() == Some(true) {
+            let (rm, pm) = (u["roll"]["max"].as_f64().unwrap(), u["pitch"]["max"].as_f64().unwrap());
+            assert!(rm < 10.0 && pm < 10.0, "{name}: ours diverged, max roll {rm} pitch {pm}");
+            let (ut, vt) = (u["tilt_rms"].as_f64().unwrap(), v["tilt_rms"].as_f64().unwrap());
+            assert!(ut < 1.3 * vt, "{name}: ours tilt RMS {ut} against VQF's {vt}");
+        }
     }
+}
+
+/// The car (comma2k19): IMU only and with its own wheel speeds, described by
+/// its DBC (Motorola byte order), merged from its bus log. The reference has
+/// no rest phase and the car brakes in its first seconds, so the mount is not
+/// estimated (`--align-s 0`: the reference is the phone's own frame).
+#[test]
+fn the_car_with_and_without_its_wheel_speeds() {
+    let Some(dir) = realdata_dir() else {
+        println!("skipped: ../shared/realdata not found (set GYROCOMP_REALDATA to the folder of recordings)");
+        return;
+    };
+    let car = dir.join("comma2k19-rav4-60s");
+    if !car.join("toyota.dbc").is_file() {
+        println!("skipped: {} has no toyota.dbc", car.display());
+        return;
+    }
+    let d = tempfile::tempdir().unwrap();
+    let (log, snip) = (d.path().join("car.log"), d.path().join("snippet.toml"));
+    let o = Command::new(bin())
+        .args(["import", "--csv"])
+        .arg(car.join("imu.csv.gz"))
+        .arg("--can")
+        .arg(car.join("can.log.gz"))
+        .arg("--out")
+        .arg(&log)
+        .arg("--config-out")
+        .arg(&snip)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let imu_only = std::fs::read_to_string(&snip).unwrap();
+    let with_speed = format!(
+        "{imu_only}[speed]\ndbc = {:?}\nmessage = \"WHEEL_SPEEDS\"\nsignals = [\"WHEEL_SPEED_RL\", \"WHEEL_SPEED_RR\"]\n",
+        car.join("toyota.dbc").display().to_string()
+    );
+    let run = |name: &str, text: &str| -> (Vec<f64>, Vec<f64>) {
+        let cfg = d.path().join(name);
+        std::fs::write(&cfg, text).unwrap();
+        let o = Command::new(bin())
+            .args(["evaluate", "--config"])
+            .arg(&cfg)
+            .arg("--input")
+            .arg(&log)
+            .arg("--reference")
+            .arg(car.join("reference.csv.gz"))
+            .args(["--peers", "--align-s", "0"])
+            .output()
+            .unwrap();
+        let out = String::from_utf8_lossy(&o.stdout).to_string();
+        println!("$ gyrocomp evaluate --config {name} --input car.log --reference reference.csv.gz --peers --align-s 0\n{out}");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let row = |who: &str| -> Vec<f64> {
+            let l = out.lines().find(|l| l.split_whitespace().any(|w| w == who)).unwrap();
+            l.split_whitespace().skip_while(|w| *w != who).skip(1).take(4).map(|v| v.parse().unwrap()).collect()
+        };
+        (row("ours"), row("vqf"))
+    };
+    let (alone, vqf) = run("imu_only.toml", &imu_only);
+    let (speed, _) = run("with_speed.toml", &with_speed);
+    // roll max, roll rms, pitch max, pitch rms
+    assert!(speed[0] <= 1.5 && speed[2] <= 1.5, "with its wheel speeds: max roll {} pitch {}", speed[0], speed[2]);
+    assert!(speed[3] < alone[3] && speed[2] < alone[2], "the wheel speeds did not help: {speed:?} vs {alone:?}");
+    // IMU only, ours keeps the roll better than VQF on the same samples
+    assert!(alone[1] < vqf[1], "IMU only roll RMS {} vs VQF {}", alone[1], vqf[1]);
 }
