@@ -63,7 +63,11 @@ fn lines(p: &Path) -> Vec<(u64, u32, Vec<u8>)> {
 fn bad_speed_frames_are_counted_and_a_silent_source_falls_back_to_the_imu() {
     let d = tempfile::tempdir().unwrap();
     let sim = d.path().join("sim");
-    let o = Command::new(bin()).args(["simulate", "--scenario", "urban", "--seed", "7", "--duration", "60", "--speed", "--out"]).arg(&sim).output().unwrap();
+    let o = Command::new(bin())
+        .args(["simulate", "--scenario", "urban", "--seed", "7", "--duration", "60", "--speed", "--out"])
+        .arg(&sim)
+        .output()
+        .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // rewrite the bus: 10 wheel frames with 5 bytes, 10 out of range, and no
     // wheel frames at all from 30 to 40 s
@@ -94,7 +98,18 @@ fn bad_speed_frames_are_counted_and_a_silent_source_falls_back_to_the_imu() {
     let log = sim.join("faulty.log");
     std::fs::write(&log, out).unwrap();
     let csv = sim.join("est.csv");
-    let o = Command::new(bin()).arg("replay").arg("--config").arg(sim.join("config.toml")).arg("--input").arg(&log).arg("--output").arg(sim.join("out.log")).arg("--csv").arg(&csv).output().unwrap();
+    let o = Command::new(bin())
+        .arg("replay")
+        .arg("--config")
+        .arg(sim.join("config.toml"))
+        .arg("--input")
+        .arg(&log)
+        .arg("--output")
+        .arg(sim.join("out.log"))
+        .arg("--csv")
+        .arg(&csv)
+        .output()
+        .unwrap();
     let summary = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{summary}");
     assert!(summary.contains("dropped wrong_dlc 10 out_of_range 10 implausible 0"), "{summary}");
