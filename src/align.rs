@@ -132,7 +132,7 @@ pub fn align(samples: &[Sample], cfg: &Config) -> Result<Alignment, String> {
             gm[i] += f[i] / u * *n as f64;
         }
     }
-    let (roll, pitch) = crate::ekf::tilt_from_accel(&gm);
+    let (roll, pitch) = crate::estimator::ekf::tilt_from_accel(&gm);
     let level = quat::matrix_from_euler(roll, pitch, 0.0);
     // 2. straight acceleration in the levelled frame: its principal line
     let (mut sxx, mut sxy, mut syy, mut n) = (0.0, 0.0, 0.0, 0usize);
@@ -183,14 +183,14 @@ pub fn align(samples: &[Sample], cfg: &Config) -> Result<Alignment, String> {
         let forward = if fwd < 0.0 { angle + std::f64::consts::PI } else { angle };
         // the vehicle's x axis appears at `forward` in the levelled sensor
         // frame: the sensor is turned by -forward in the vehicle
-        yaw = crate::ekf::wrap_pi(-forward);
+        yaw = crate::estimator::ekf::wrap_pi(-forward);
         evidence = Some((n, spread));
     }
     let rotation = [roll / D2R, pitch / D2R, yaw / D2R];
     let rests = rests
         .iter()
         .map(|(start, len, f)| {
-            let (r, p) = crate::ekf::tilt_from_accel(f);
+            let (r, p) = crate::estimator::ekf::tilt_from_accel(f);
             (*start as f64 * dt, *len as f64 * dt, [r / D2R, p / D2R])
         })
         .collect();

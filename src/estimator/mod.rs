@@ -16,18 +16,21 @@
 //! - [`mekf`] (`mode = "mekf"`, the default): quaternion error-state filter
 //!   with standstill updates and the ground-vehicle constraint;
 //! - [`paper`] (`paper`, `startup_thermal`, `startup_average`): the published
-//!   method, faithful, and its comparison cases;
-//! - [`rest`]: the standstill detector; [`crate::switching`]: the paper's
+//!   method, faithful, on the 6-state Euler-angle EKF of [`ekf`], and its
+//!   comparison cases;
+//! - [`rest`]: the standstill detector; [`switching`]: the paper's
 //!   bands and acceleration-change criterion (the policy on top of both).
 
+pub mod ekf;
 pub mod mekf;
 pub mod paper;
 pub mod quat;
 pub mod rest;
+pub mod switching;
 
 use crate::adis::Sample;
 use crate::config::{Config, Mode};
-use crate::switching::Switching;
+use crate::estimator::switching::Switching;
 use crate::thermal::{SlopeLearner, SlopeParams, SlopeState, Thermal};
 use mekf::{MagUse, Mekf, MekfCounters, MekfParams, G};
 use paper::Paper;

@@ -1,7 +1,7 @@
 //! The paper's method, faithful (`mode = "paper"`), and its comparison cases
 //! (`startup_average`, `startup_thermal`).
 //!
-//! - `paper`: the 6-state Euler-angle EKF (`crate::ekf`) fuses roll/pitch from
+//! - `paper`: the 6-state Euler-angle EKF (`crate::estimator::ekf`) fuses roll/pitch from
 //!   the accelerometer and the magnetic heading. Inside the inner |a|/g0 band
 //!   it learns the bias; between the bands a weighted blend (noise / w, no
 //!   bias learning); outside, or when the acceleration-change criterion
@@ -14,8 +14,8 @@
 
 use super::{flags, Learned, StepIn};
 use crate::config::{Config, Mode};
-use crate::ekf::{heading_from_mag, tilt_from_accel, wrap_pi, Ekf, Learn};
-use crate::switching::{Band, Switching};
+use crate::estimator::ekf::{heading_from_mag, tilt_from_accel, wrap_pi, Ekf, Learn};
+use crate::estimator::switching::{Band, Switching};
 use nalgebra::Vector3;
 
 const D2R: f64 = std::f64::consts::PI / 180.0;

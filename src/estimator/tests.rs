@@ -217,7 +217,7 @@ fn mekf(extra: &str) -> Estimator {
 }
 
 fn angle_err(a: f64, b: f64) -> f64 {
-    crate::ekf::wrap_pi((a - b) * D2R).abs() * R2D
+    crate::estimator::ekf::wrap_pi((a - b) * D2R).abs() * R2D
 }
 
 #[test]

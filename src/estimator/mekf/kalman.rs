@@ -1,0 +1,190 @@
+//! The error-state Kalman filter's numerics: the covariance propagation
+//! with the transition accumulated between ticks, the scalar update with its
+//! innovation gate, and the injection of the error state into the nominal one.
+
+use super::*;
+
+impl Mekf {
+    /// The propagation of `propagate` without process noise, over the
+    /// samples accumulated so far (for tests).
+    #[cfg(test)]
+    pub(super) fn propagate_noiseless(&mut self) {
+        let a = self.acc.clone();
+        let saved = (self.p.q_gyro, self.p.q_bias, self.p.q_accel, self.p.q_scale, self.p.gyro_scale);
+        self.p.q_gyro = 0.0;
+        self.p.q_bias = 0.0;
+        self.p.q_accel = 0.0;
+        self.p.q_scale = 0.0;
+        self.p.gyro_scale = 0.0;
+        self.propagate(&a);
+        (self.p.q_gyro, self.p.q_bias, self.p.q_accel, self.p.q_scale, self.p.gyro_scale) = saved;
+    }
+
+    /// `P = Φ P Φ^T + Q` with `Φ = [[I, A, 0, 0], [0, I, 0, 0], [B, D, I, 0], [0, 0, 0, 1]]`,
+    /// `A = -Σ C dt`, `B = -[Σ C f dt ×]`, `D ≈ B A / 2`.
+    pub(super) fn propagate(&mut self, a: &Accum) {
+        let mut am = [[0.0; 3]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                am[i][j] = -a.s_c[i][j];
+            }
+        }
+        let d = a.dv;
+        // B = -[d×]
+        let bm = [[0.0, d[2], -d[1]], [-d[2], 0.0, d[0]], [d[1], -d[0], 0.0]];
+        let mut dm = [[0.0; 3]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                dm[i][j] = 0.5 * (bm[i][0] * am[0][j] + bm[i][1] * am[1][j] + bm[i][2] * am[2][j]);
+            }
+        }
+        let p = &mut self.cov;
+        // M = Φ P (rows): θ rows += A P_b·; v rows += B P_θ· + D P_b·
+        let mut m = *p;
+        for i in 0..3 {
+            for k in 0..N {
+                let mut sth = 0.0;
+                let mut sv = 0.0;
+                for j in 0..3 {
+                    sth += am[i][j] * p[BI + j][k];
+                    sv += bm[i][j] * p[TH + j][k] + dm[i][j] * p[BI + j][k];
+                }
+                m[TH + i][k] += sth;
+                m[VE + i][k] += sv;
+            }
+        }
+        // P' = M Φ^T (columns): θ cols += M_·b A^T; v cols += M_·θ B^T + M_·b D^T
+        let mut out = m;
+        for k in 0..N {
+            for i in 0..3 {
+                let mut sth = 0.0;
+                let mut sv = 0.0;
+                for j in 0..3 {
+                    sth += m[k][BI + j] * am[i][j];
+                    sv += m[k][TH + j] * bm[i][j] + m[k][BI + j] * dm[i][j];
+                }
+                out[k][TH + i] += sth;
+                out[k][VE + i] += sv;
+            }
+        }
+        let t = a.t;
+        let turned = self.p.gyro_scale * a.turned;
+        for i in 0..3 {
+            out[TH + i][TH + i] += self.p.q_gyro * t + turned * turned;
+            out[BI + i][BI + i] += self.p.q_bias * t;
+            out[VE + i][VE + i] += self.p.q_accel * t;
+        }
+        if self.p.speed_aided {
+            out[SC][SC] += self.p.q_scale * t;
+        }
+        // keep it symmetric
+        for i in 0..N {
+            for j in 0..i {
+                let v = 0.5 * (out[i][j] + out[j][i]);
+                out[i][j] = v;
+                out[j][i] = v;
+            }
+        }
+        *p = out;
+    }
+
+    /// One scalar update `nu = h dx + noise(r)`, gated; the gain rows of the
+    /// tilt and the bias only where allowed (Joseph form keeps P right for
+    /// the restricted gain). Accumulates into `dx`.
+    pub(super) fn update(&mut self, h: &[f64; N], nu: f64, r: f64, gain: Gain, gate: f64) -> Upd {
+        // most rows have one to three non-zero entries
+        let mut nz = [0usize; N];
+        let mut n = 0;
+        for (j, v) in h.iter().enumerate() {
+            if *v != 0.0 {
+                nz[n] = j;
+                n += 1;
+            }
+        }
+        let nz = &nz[..n];
+        let p = &self.cov;
+        let mut u = [0.0; N];
+        for i in 0..N {
+            let mut s = 0.0;
+            for &j in nz {
+                s += p[i][j] * h[j];
+            }
+            u[i] = s;
+        }
+        let mut s = r;
+        let mut hdx = 0.0;
+        for &j in nz {
+            s += h[j] * u[j];
+            hdx += h[j] * self.dx[j];
+        }
+        if s.is_nan() || s <= 0.0 || s.is_infinite() {
+            return Upd::Skipped;
+        }
+        let nu = nu - hdx;
+        if nu * nu > gate * s {
+            return Upd::Gated;
+        }
+        let mut k = [0.0; N];
+        for i in 0..N {
+            k[i] = u[i] / s;
+        }
+        let full = gain.tilt && gain.bias;
+        if !gain.tilt {
+            k[TH] = 0.0;
+            k[TH + 1] = 0.0;
+        }
+        if !gain.bias {
+            k[BI] = 0.0;
+            k[BI + 1] = 0.0;
+            k[BI + 2] = 0.0;
+        }
+        for i in 0..N {
+            self.dx[i] += k[i] * nu;
+        }
+        let p = &mut self.cov;
+        if full {
+            // the optimal gain: Joseph reduces to P - u u^T / s
+            for i in 0..N {
+                for j in 0..=i {
+                    let v = p[i][j] - k[i] * u[j];
+                    p[i][j] = v;
+                    p[j][i] = v;
+                }
+            }
+        } else {
+            for i in 0..N {
+                for j in 0..=i {
+                    let v = p[i][j] - k[i] * u[j] - u[i] * k[j] + s * k[i] * k[j];
+                    p[i][j] = v;
+                    p[j][i] = v;
+                }
+            }
+        }
+        Upd::Fused
+    }
+
+    /// Apply the accumulated error to the state and clear it.
+    pub(super) fn inject(&mut self) {
+        let d = self.dx;
+        if d.iter().all(|v| *v == 0.0) {
+            return;
+        }
+        let dq = quat::from_rotvec(&[d[TH], d[TH + 1], d[TH + 2]]);
+        self.q = quat::mul(&dq, &self.q);
+        if let Some(lp) = self.f_lp {
+            // the low-passed force was rotated with the old attitude
+            let r = quat::to_matrix(&dq);
+            self.f_lp = Some(rotate(&r, &lp));
+        }
+        quat::normalise(&mut self.q);
+        self.c = quat::to_matrix(&self.q);
+        for i in 0..3 {
+            self.bias[i] += d[BI + i];
+            self.v[i] += d[VE + i];
+        }
+        if self.p.speed_aided {
+            self.scale += d[SC];
+        }
+        self.dx = [0.0; N];
+    }
+}

@@ -1,0 +1,158 @@
+//! The measurements of the default filter: the ground-vehicle constraint and
+//! the free unit's low-passed gravity, the wheel speed, the magnetic heading,
+//! and the re-levelling after a sustained disagreement at rest.
+
+use super::*;
+
+impl Mekf {
+    /// The ground-vehicle constraint (no lateral / vertical velocity at the
+    /// rear axle) or, for a unit that is not a vehicle, a bounded velocity.
+    /// Returns (fused any, gated any).
+    pub(super) fn velocity_updates(&mut self, omega: &[f64; 3], learn: bool, gate: f64) -> (bool, bool) {
+        let gain = Gain { tilt: true, bias: learn };
+        let mut fused = false;
+        let mut gated = false;
+        let mut note = |u: Upd| match u {
+            Upd::Fused => fused = true,
+            Upd::Gated => gated = true,
+            Upd::Skipped => {}
+        };
+        let (axes, var): (&[usize], f64) = if self.vehicle { (&[1, 2], self.p.nhc_var) } else { (&[0, 1, 2], self.p.free_var) };
+        if !self.vehicle {
+            for u in self.gravity_lp_update(self.p.lp_tilt_var, gain, gate) {
+                note(u);
+            }
+        }
+        for &i in axes {
+            let (nu, h) = self.body_velocity_row(i, omega);
+            let u = self.update(&h, -nu, var, gain, gate);
+            note(u);
+        }
+        (fused, gated)
+    }
+
+    /// The navigation-frame low-passed specific force as gravity (tilt only).
+    pub(super) fn gravity_lp_update(&mut self, var: f64, gain: Gain, gate: f64) -> [Upd; 2] {
+        let Some(f) = self.f_lp else { return [Upd::Skipped; 2] };
+        let fnm = norm(&f);
+        if fnm < 0.3 {
+            return [Upd::Skipped; 2];
+        }
+        // u = -e_z + (dθ_y, -dθ_x, 0)
+        let mut h = [0.0; N];
+        h[TH + 1] = 1.0;
+        let a = self.update(&h, f[0] / fnm, var, gain, gate);
+        let mut h = [0.0; N];
+        h[TH] = -1.0;
+        let b = self.update(&h, f[1] / fnm, var, gain, gate);
+        [a, b]
+    }
+
+    /// Body-axis `i` velocity at the rear axle and its row of H.
+    pub(super) fn body_velocity_row(&self, i: usize, omega: &[f64; 3]) -> (f64, [f64; N]) {
+        let vb = rotate_t(&self.c, &self.v);
+        let l = self.p.lever;
+        let wl = cross(omega, &l);
+        let val = vb[i] - wl[i];
+        // c_i: column i of C (body axis i in NED)
+        let ci = [self.c[0][i], self.c[1][i], self.c[2][i]];
+        let hth = cross(&ci, &self.v);
+        // -[l×] row i
+        let lx = [[0.0, -l[2], l[1]], [l[2], 0.0, -l[0]], [-l[1], l[0], 0.0]];
+        let mut h = [0.0; N];
+        for j in 0..3 {
+            h[TH + j] = hth[j];
+            h[VE + j] = ci[j];
+            h[BI + j] = -lx[i][j];
+        }
+        (val, h)
+    }
+
+    pub(super) fn speed_update(&mut self, vw: f64, omega: &[f64; 3], learn: bool, gate: f64) -> Upd {
+        let (val, mut h) = self.body_velocity_row(0, omega);
+        h[SC] = -vw;
+        let nu = vw * (1.0 + self.scale) - val;
+        self.update(&h, nu, self.p.speed_var, Gain { tilt: true, bias: learn }, gate)
+    }
+
+    /// Heading from the magnetometer. Some(fused) or None when disturbed.
+    pub(super) fn heading_update(&mut self, m: &[f64; 3], at_rest: bool, learn: bool, gate: f64) -> Option<bool> {
+        let mn = rotate(&self.c, m);
+        let nrm = norm(&mn);
+        let h2 = mn[0] * mn[0] + mn[1] * mn[1];
+        if nrm < 1e-6 || h2 < 1e-12 {
+            return Some(false);
+        }
+        let dip = mn[2].atan2(h2.sqrt());
+        match self.mag_ref {
+            None => {
+                if at_rest || self.mag_dist_s > 0.0 {
+                    self.mag_ref = Some((nrm, dip));
+                    self.mag_dist_s = 0.0;
+                } else {
+                    // no reference yet: take the first field as it is
+                    self.mag_ref = Some((nrm, dip));
+                }
+            }
+            Some((rn, rd)) => {
+                let disturbed = ((nrm / rn) - 1.0).abs() > self.p.mag_norm_tol || (dip - rd).abs() > self.p.mag_dip_tol;
+                self.mag_disturbed = disturbed;
+                if disturbed {
+                    self.mag_dist_s += self.p.tick_s;
+                    // a field that stays different for a minute and is steady
+                    // at a rest is the new normal (moved car, new mounting)
+                    if at_rest && self.mag_dist_s > 60.0 {
+                        self.mag_ref = Some((nrm, dip));
+                        self.mag_dist_s = 0.0;
+                    }
+                    return None;
+                }
+                self.mag_dist_s = 0.0;
+            }
+        }
+        let psi = mn[1].atan2(mn[0]);
+        let nu = wrap_pi(psi - self.p.declination);
+        let mut h = [0.0; N];
+        h[TH] = mn[0] * mn[2] / h2;
+        h[TH + 1] = mn[1] * mn[2] / h2;
+        h[TH + 2] = -1.0;
+        Some(self.update(&h, nu, self.p.yaw_var, Gain { tilt: false, bias: learn }, gate) == Upd::Fused)
+    }
+
+    /// Re-level at rest: the accelerometer (low-passed over the rest) gives
+    /// roll and pitch, the low-passed gyro the bias, the velocity is zero.
+    /// The covariances are widened to what was refused, then the rest's
+    /// updates converge them again.
+    pub(super) fn relevel(&mut self) {
+        let Some(r) = self.last_rest else { return };
+        let e = quat::euler(&self.c);
+        let (roll, pitch) = crate::estimator::ekf::tilt_from_accel(&r.accel_lp);
+        let dt = ((roll - e[0]).powi(2) + (pitch - e[1]).powi(2)).max((1.0 * D2R).powi(2));
+        self.q = quat::from_euler(roll, pitch, e[2]);
+        self.c = quat::to_matrix(&self.q);
+        self.v = [0.0; 3];
+        let mut db = 0.0f64;
+        for i in 0..3 {
+            db = db.max((r.gyro_lp[i] - self.bias[i]).abs());
+            self.bias[i] = r.gyro_lp[i];
+        }
+        // decorrelate and widen tilt, bias and velocity (heading and scale keep theirs)
+        for i in [TH, TH + 1, BI, BI + 1, BI + 2, VE, VE + 1, VE + 2] {
+            for j in 0..N {
+                if j != i {
+                    self.cov[i][j] = 0.0;
+                    self.cov[j][i] = 0.0;
+                }
+            }
+        }
+        for i in 0..2 {
+            self.cov[TH + i][TH + i] = dt;
+        }
+        for i in 0..3 {
+            self.cov[BI + i][BI + i] = (db * db).max((0.1 * D2R).powi(2));
+            self.cov[VE + i][VE + i] = 0.01;
+        }
+        self.refused_still = 0.0;
+        self.counters.relevels += 1;
+    }
+}
