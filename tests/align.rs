@@ -46,7 +46,7 @@ fn stops_gravity(dir: &std::path::Path, out: &str, m: [f64; 3]) -> [f64; 2] {
             sum[i] += fs[i] * len;
         }
     }
-    let (roll, pitch) = gyrocomp::ekf::tilt_from_accel(&sum);
+    let (roll, pitch) = gyrocomp::estimator::ekf::tilt_from_accel(&sum);
     [roll / d, pitch / d]
 }
 

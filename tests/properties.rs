@@ -2,7 +2,7 @@
 
 use gyrocomp::adis::{builtin_profile, Assembler, InputIds, Push, RawFrame, RawSample};
 use gyrocomp::config::OutputConfig;
-use gyrocomp::ekf::{Ekf, Learn};
+use gyrocomp::estimator::ekf::{Ekf, Learn};
 use gyrocomp::estimator::Estimate;
 use gyrocomp::output::{decode, encode, StatusCounters};
 use nalgebra::Vector3;
