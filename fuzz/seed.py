@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Seed corpora for the fuzz targets, from the project's own files.
 
-Writes fuzz/corpus/<target>/ (gitignored) from tests/data/road-40s.log and
-config/gyrocomp.toml. Deterministic: the same files every time.
+Writes fuzz/corpus/<target>/ (gitignored) from tests/data/road-40s.log,
+config/gyrocomp.toml and config/example-car.dbc. Deterministic: the same files every time.
 """
 import os
 import sys
@@ -54,6 +54,11 @@ def main():
             put("adis_assembler", f"road-{n}-{sel:02x}", bytes([sel]) + body)
         for sel in [0x80, 0x81, 0x82, 0x83, 0x85]:
             put("pipeline", f"road-{n}-{sel:02x}", bytes([sel]) + body)
+    # dbc: the example car's DBC, then a 0 byte and a few frames
+    with open(os.path.join(ROOT, "config", "example-car.dbc"), "rb") as f:
+        dbc = f.read()
+    put("dbc", "example-car", dbc)
+    put("dbc", "example-car-frames", dbc + b"\x00" + bytes([8]) + bytes(range(8)) + bytes([5]) + b"\xff" * 5)
     # config: the shipped example and small ones
     with open(os.path.join(ROOT, "config", "gyrocomp.toml"), "rb") as f:
         put("config", "shipped", f.read())

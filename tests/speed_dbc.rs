@@ -278,3 +278,40 @@ proptest! {
         }
     }
 }
+
+/// Every prefix of the example DBC, and the DBC with any one line cut in two or
+/// a number replaced by garbage: a decoder or a clear error, never a panic
+/// (the DBC parser reads a file the user hands the daemon at start-up).
+#[test]
+fn a_damaged_dbc_is_an_error_never_a_panic() {
+    let text = std::fs::read_to_string(example_dbc()).unwrap();
+    let c = cfg(Path::new("car.dbc"), "WHEEL_SPEEDS", &["WHEEL_SPEED_RL", "WHEEL_SPEED_RR"]);
+    let mut texts: Vec<String> = (0..=text.len()).filter(|&n| text.is_char_boundary(n)).map(|n| text[..n].to_string()).collect();
+    let lines: Vec<&str> = text.lines().collect();
+    for (k, l) in lines.iter().enumerate() {
+        for bad in ["", "|", "99999999999999999999999", "-", "\"", "@"] {
+            let mut v = lines.clone();
+            let half = &l[..l.len() / 2];
+            let cut = format!("{half}{bad}");
+            v[k] = &cut;
+            texts.push(v.join("\n"));
+        }
+    }
+    let (mut ok, mut refused) = (0, 0);
+    for t in &texts {
+        match std::panic::catch_unwind(|| SpeedDecoder::from_dbc_text(t, "car.dbc", &c)) {
+            Ok(Ok(dec)) => {
+                ok += 1;
+                // whatever it accepted decodes a frame or drops it
+                let _ = dec.decode(&[0x12; 8]);
+            }
+            Ok(Err(e)) => {
+                refused += 1;
+                assert!(!e.to_string().is_empty());
+            }
+            Err(_) => panic!("the DBC decoder panicked on:\n{t}"),
+        }
+    }
+    println!("damaged DBCs: {} accepted, {} refused", ok, refused);
+    assert!(ok >= 1 && refused >= 1, "{ok} accepted, {refused} refused");
+}

@@ -459,17 +459,18 @@ impl Mekf {
                 None => f,
                 Some(lp) => [lp[0] + (f[0] - lp[0]) * al, lp[1] + (f[1] - lp[1]) * al, lp[2] + (f[2] - lp[2]) * al],
             });
-            let gl = s.g0 * G;
+            // v' = C f + g, in m/s^2 (the accelerometer reads g units; g0
+            // is not gravity's size when the unit was powered on moving)
             for i in 0..3 {
-                self.v[i] += f[i] * gl * dt;
+                self.v[i] += f[i] * G * dt;
             }
-            self.v[2] += gl * dt;
+            self.v[2] += G * dt;
             let a = &mut self.acc;
             for i in 0..3 {
                 for j in 0..3 {
                     a.s_c[i][j] += self.c[i][j] * dt;
                 }
-                a.dv[i] += f[i] * gl * dt;
+                a.dv[i] += f[i] * G * dt;
             }
             a.t += dt;
             a.turned += wn * dt;
