@@ -1,0 +1,109 @@
+//! One run to score: a `gyrocomp simulate` directory loaded from disk, or a
+//! seed simulated in memory (the same frames `simulate` would write), with
+//! its truth and true bias; and the estimator replayed over its input.
+
+use crate::adis::RawFrame;
+use crate::config::Config;
+use crate::estimator::Estimate;
+use crate::output::OutFrame;
+use crate::pipeline::{Pipeline, Sink};
+use crate::replay::{replay_files, ReplayFiles};
+use crate::sim::model::SensorModel;
+use crate::sim::{self, read_bias, read_info, read_truth, ScenarioInfo, SimOptions, TruthRow};
+use std::path::{Path, PathBuf};
+
+/// Everything scoring needs about one run.
+pub struct RunData {
+    pub info: ScenarioInfo,
+    pub model: SensorModel,
+    pub truth: Vec<TruthRow>,
+    /// True additive gyro bias per sample, deg/s.
+    pub bias: Vec<[f64; 3]>,
+    /// The run's own calibrated config (thermal curve known to +-thermal_error).
+    pub unit_config: Option<Config>,
+    source: Source,
+}
+
+enum Source {
+    Log(PathBuf),
+    /// The whole bus of an in-memory run (IMU frames and wheel speeds), and
+    /// the DBC text that describes its wheel speeds (urban).
+    Frames(Vec<sim::BusFrame>, Option<&'static str>),
+}
+
+impl RunData {
+    /// Load a `gyrocomp simulate` directory.
+    pub fn load(dir: &Path) -> Result<RunData, String> {
+        let info = read_info(&dir.join("scenario.toml"))?;
+        let model = SensorModel::load(&dir.join("sensor.toml"))?;
+        let truth = read_truth(&dir.join("truth.csv"))?;
+        let bias: Vec<[f64; 3]> = read_bias(&dir.join("bias.csv"))?.into_iter().map(|(_, b)| b).collect();
+        if bias.len() != truth.len() {
+            return Err(format!("{}: bias.csv and truth.csv differ in length", dir.display()));
+        }
+        let unit_config = Config::load(&dir.join("config.toml")).ok();
+        Ok(RunData { info, model, truth, bias, unit_config, source: Source::Log(dir.join("imu.log")) })
+    }
+
+    /// Simulate in memory.
+    pub fn simulate(o: &SimOptions) -> Result<RunData, String> {
+        let run = sim::prepare(o)?;
+        let mut truth = Vec::new();
+        let mut bias = Vec::new();
+        let mut frames = Vec::new();
+        for b in sim::bus(&run, o.seed) {
+            let tr = &b.truth;
+            truth.push(TruthRow { t: tr.t, att: [tr.roll, tr.pitch, tr.yaw], rate: tr.rate, f: tr.f, temp: tr.temp });
+            bias.push(b.measured.bias);
+            frames.extend_from_slice(b.frames());
+        }
+        let unit_config = Some(Config::parse(&run.config_toml, "simulated unit").map_err(|e| e.to_string())?);
+        let dbc = run.wheel.is_some().then_some(sim::wheel::EXAMPLE_DBC);
+        Ok(RunData { info: run.info, model: run.model, truth, bias, unit_config, source: Source::Frames(frames, dbc) })
+    }
+
+    /// Run the estimator over the run's input.
+    pub fn estimates(&self, cfg: &Config) -> Result<(Vec<Estimate>, [f64; 3]), String> {
+        self.estimates_with(cfg, |_| {})
+    }
+
+    /// `estimates`, with `prepare` run on the estimator before the first
+    /// sample (a saved bias as the prior, say; in-memory runs only).
+    pub fn estimates_with(
+        &self,
+        cfg: &Config,
+        prepare: impl FnOnce(&mut crate::estimator::Estimator),
+    ) -> Result<(Vec<Estimate>, [f64; 3]), String> {
+        let mut est = Vec::with_capacity(self.truth.len());
+        match &self.source {
+            Source::Log(p) => {
+                let sum =
+                    replay_files(cfg, &ReplayFiles { input: p, output: None, csv: None }, Some(&mut est)).map_err(|e| e.to_string())?;
+                Ok((est, sum.mode_seconds))
+            }
+            Source::Frames(fr, dbc) => {
+                struct Keep<'a>(&'a mut Vec<Estimate>);
+                impl Sink for Keep<'_> {
+                    fn output(&mut self, e: &Estimate, _: &[OutFrame; 4]) {
+                        self.0.push(*e);
+                    }
+                }
+                // the wheel speeds of an in-memory run are described by its own DBC text
+                let speed = match (cfg.speed.enabled(), dbc) {
+                    (false, _) => None,
+                    (true, Some(text)) => {
+                        Some(crate::speed::SpeedDecoder::from_dbc_text(text, "car.dbc", &cfg.speed).map_err(|e| e.to_string())?)
+                    }
+                    (true, None) => crate::speed::load(cfg).map_err(|e| e.to_string())?,
+                };
+                let mut pipe = Pipeline::with_speed(cfg, speed);
+                prepare(pipe.estimator_mut());
+                let mut sink = Keep(&mut est);
+                for f in fr {
+                    pipe.push(f.t_us, RawFrame::classic(f.id, &f.data), &mut sink);
+                }
+                Ok((est, pipe.mode_seconds()))
+            }
+        }
+    }
+}

@@ -1,0 +1,201 @@
+//! `gyrocomp evaluate`: replay a simulated run and score it against its truth.
+//!
+//! Single run (`--input DIR`, a `gyrocomp simulate` directory): replays
+//! `DIR/imu.log` with the config, scores roll/pitch/yaw (max and RMS error),
+//! the bias (against `DIR/bias.csv`) and the time per mode, and writes
+//! `report.json` and two SVG plots into the report directory. With
+//! `--ablation` the paper's three cases and the default mode run on the same
+//! log and print as one table.
+//!
+//! Many seeds (`--seeds A..B --scenario NAME`): each seed is simulated in
+//! memory (the same frames `simulate` would write) and replayed through the
+//! same pipeline; the config's thermal curve is replaced by the seed's
+//! calibration (the drawn slope known to +-`thermal_error`).
+//!
+//! Scores start at `score_from_s` (default 10 s: no estimator is asked to be
+//! right at its first sample). The **oracle floor** integrates the measured
+//! gyro with the deterministic sensor error known exactly (every effect of
+//! `sensor.toml` evaluated on the truth; only white noise, bias random walk
+//! and quantisation remain) from the true attitude at the start of the
+//! manoeuvres, and reports its max roll/pitch error over the rest of the run.
+//!
+//! The steps, one file each: `data.rs` the run (loaded or simulated) and the
+//! replay, `metrics.rs` the scores and the oracle floor, `table.rs` the text
+//! tables, `dir.rs` one directory, `seeds.rs` many seeds, `plot.rs` the SVG
+//! plots; here the options, the ablation cases, the report writing and the
+//! subcommand.
+
+mod data;
+mod dir;
+mod metrics;
+mod plot;
+mod seeds;
+mod table;
+
+pub use data::RunData;
+pub use dir::{evaluate_dir, evaluate_dir_with};
+pub use metrics::{errors, oracle, score, Metrics, Window};
+pub use seeds::{evaluate_seeds, evaluate_seeds_with, median, SeedRow};
+pub use table::{run_row, run_table, Table};
+
+use crate::config::{Config, Mode};
+use crate::sim::SimOptions;
+use std::path::{Path, PathBuf};
+
+/// The ablation cases: the paper's three, then the default mode.
+pub fn cases(base: &Config, ablation: bool) -> Vec<(String, Config)> {
+    let with = |m: Mode| {
+        let mut c = base.clone();
+        c.estimator.mode = m;
+        c
+    };
+    if !ablation {
+        return vec![(base.estimator.mode.name().to_string(), base.clone())];
+    }
+    let default = Config::default().estimator.mode;
+    let mut v = vec![
+        ("1 startup_average".to_string(), with(Mode::StartupAverage)),
+        ("2 startup_thermal".to_string(), with(Mode::StartupThermal)),
+        ("3 paper".to_string(), with(Mode::Paper)),
+    ];
+    if default != Mode::Paper {
+        v.push((format!("default ({})", default.name()), with(default)));
+    }
+    v
+}
+
+/// Options of `gyrocomp evaluate`.
+#[derive(Clone, Debug)]
+pub struct EvalOptions {
+    pub score_from: f64,
+    pub ablation: bool,
+    pub out: Option<PathBuf>,
+}
+
+/// Write the report files: every destination checked first (not an input,
+/// not a directory), then each written through a temporary file.
+fn write_reports(dir: &Path, inputs: &[&Path], files: &[(&str, Vec<u8>)]) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let dests: Vec<PathBuf> = files.iter().map(|(n, _)| dir.join(n)).collect();
+    let refs: Vec<&Path> = dests.iter().map(PathBuf::as_path).collect();
+    crate::outfile::refuse_inputs_as_outputs(inputs, &refs)?;
+    if let Some(d) = dests.iter().find(|d| d.is_dir()) {
+        return Err(format!("{} is a directory: the report is a file of that name", d.display()));
+    }
+    for (d, (_, bytes)) in dests.iter().zip(files) {
+        crate::outfile::write_atomic(d, bytes).map_err(|e| format!("{}: {e}", d.display()))?;
+    }
+    Ok(())
+}
+
+/// Parse `A..B` (inclusive) or a single seed.
+pub fn parse_seeds(s: &str) -> Result<std::ops::RangeInclusive<u64>, String> {
+    let bad = || format!("--seeds wants A..B (inclusive) or N, got {s:?}");
+    match s.split_once("..") {
+        Some((a, b)) => {
+            let a: u64 = a.trim().parse().map_err(|_| bad())?;
+            let b: u64 = b.trim().trim_start_matches('=').parse().map_err(|_| bad())?;
+            if a > b {
+                return Err(bad());
+            }
+            Ok(a..=b)
+        }
+        None => {
+            let a: u64 = s.trim().parse().map_err(|_| bad())?;
+            Ok(a..=a)
+        }
+    }
+}
+
+/// The `evaluate` subcommand.
+#[derive(clap::Args, Debug)]
+#[command(group(clap::ArgGroup::new("what").required(true).args(["input", "seeds", "realdata"])))]
+pub struct EvaluateArgs {
+    /// gyrocomp config (TOML). Default: the built-in defaults. With --seeds its
+    /// [thermal] section is replaced by each simulated unit's calibration.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// A `gyrocomp simulate` directory to replay and score, or with --reference a
+    /// candump log. One of --input, --seeds or --realdata is required.
+    #[arg(long, value_name = "DIR", conflicts_with = "seeds")]
+    pub input: Option<PathBuf>,
+    /// Report directory: report.json (and with --input attitude_error.svg,
+    /// bias.svg). Default: no report files.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Also run the paper's three cases (startup_average, startup_thermal,
+    /// paper) and print them with the default mode. Off by default.
+    #[arg(long)]
+    pub ablation: bool,
+    /// Simulate (in memory) and evaluate these seeds: A..B inclusive, or one
+    /// seed N. Required unless --input is given; needs --scenario.
+    #[arg(long, value_name = "A..B", requires = "scenario")]
+    pub seeds: Option<String>,
+    /// With --seeds: the scenario to simulate (static, chamber, paper, vehicle). Required with --seeds.
+    #[arg(long, value_name = "NAME", requires = "seeds")]
+    pub scenario: Option<String>,
+    /// With --seeds, vehicle only: add emergency brakes and swerves of 0.65-0.8 g. Off by default.
+    #[arg(long, requires = "seeds")]
+    pub hard: bool,
+    /// With --seeds: the simulated runs start while the car is already
+    /// driving (urban, vehicle, paper). Default: a parked start.
+    #[arg(long, requires = "seeds")]
+    pub power_on_moving: bool,
+    /// With --seeds (urban): the estimator uses the car's wheel speeds
+    /// ([speed] of each run's config). Default: IMU only.
+    #[arg(long, requires = "seeds")]
+    pub speed: bool,
+    /// With --seeds: duration of each run, s (> 0). Default: the scenario's
+    /// (static 300, chamber 1800, paper and vehicle 800, urban 400; the
+    /// manoeuvres of paper and vehicle start at 350).
+    #[arg(long, value_name = "S", requires = "seeds", allow_negative_numbers = true, value_parser = crate::sim::cli::positive_seconds)]
+    pub duration: Option<f64>,
+    /// With --seeds: relative error of the thermal slope the estimator is
+    /// given, a fraction 0..1 (0.05 = each axis off by up to +-5 %).
+    #[arg(long, value_name = "FRACTION", allow_negative_numbers = true, value_parser = crate::sim::cli::fraction, default_value_t = 0.05)]
+    pub thermal_error: f64,
+    /// Score from this time on, s after power-on (>= 0); the manoeuvres-only
+    /// scores start where the manoeuvres do. Alias: --skip.
+    #[arg(
+        long,
+        visible_alias = "skip",
+        value_name = "S",
+        allow_negative_numbers = true,
+        value_parser = crate::sim::cli::non_negative_seconds,
+        default_value_t = 10.0
+    )]
+    pub score_from: f64,
+    /// Real data: --reference, --realdata, --peers, --offset, --align-s (`gyrocomp::reference`).
+    #[command(flatten)]
+    pub real: crate::reference::ReferenceArgs,
+}
+
+pub fn run(a: &EvaluateArgs) -> Result<(), String> {
+    if let Some(text) = crate::reference::dispatch(a.config.as_deref(), a.input.as_deref(), a.out.as_deref(), a.score_from, &a.real)? {
+        print!("{text}");
+        return Ok(());
+    }
+    let cfg = match &a.config {
+        Some(p) => Config::load(p).map_err(|e| e.to_string())?,
+        None => Config::default(),
+    };
+    let o = EvalOptions { score_from: a.score_from, ablation: a.ablation, out: a.out.clone() };
+    let text = match (&a.input, &a.seeds) {
+        (Some(dir), None) => evaluate_dir_with(&cfg, dir, &o, a.config.as_deref())?,
+        (None, Some(s)) => {
+            let sc = a.scenario.as_deref().ok_or("--seeds needs --scenario")?;
+            crate::sim::cli::check_scenario(sc, a.hard, a.duration, &cfg.input.profile)?;
+            let mut so = SimOptions::new(sc, 0);
+            so.hard = a.hard;
+            so.power_on_moving = a.power_on_moving;
+            so.speed = a.speed;
+            so.duration = a.duration;
+            so.thermal_error = a.thermal_error;
+            so.profile = cfg.input.profile.clone();
+            evaluate_seeds_with(&cfg, &so, parse_seeds(s)?, &o, a.config.as_deref())?
+        }
+        _ => return Err("evaluate needs --input DIR or --seeds A..B --scenario NAME".into()),
+    };
+    print!("{text}");
+    Ok(())
+}

@@ -1,0 +1,214 @@
+//! Evaluating many seeds of a scenario: each simulated in memory, every
+//! case scored per seed (one progress line per seed on stderr), then the
+//! summary over the seeds (worst, median, ratio to the oracle floor) and
+//! with `--out` report.json.
+
+use super::{cases, oracle, score, table::num, write_reports, EvalOptions, Metrics, RunData, Table, Window};
+use crate::config::Config;
+use crate::sim::{self, SimOptions};
+use serde::Serialize;
+use std::path::Path;
+
+/// One seed's results.
+#[derive(Clone, Debug, Serialize)]
+pub struct SeedRow {
+    pub seed: u64,
+    /// Scored from `score_from`.
+    pub cases: Vec<Metrics>,
+    /// Scored over the manoeuvres only (the oracle floor's window).
+    pub manoeuvres: Vec<Metrics>,
+    pub oracle: Metrics,
+}
+
+/// Median of a slice (upper median for even lengths is avoided: mean of the two middle values).
+pub fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.total_cmp(b));
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}
+
+/// Evaluate many seeds of a scenario; prints progress to stderr, returns the tables.
+pub fn evaluate_seeds(base: &Config, sim: &SimOptions, seeds: std::ops::RangeInclusive<u64>, o: &EvalOptions) -> Result<String, String> {
+    evaluate_seeds_with(base, sim, seeds, o, None)
+}
+
+/// [`evaluate_seeds`]; `config_path` (the `--config` file) is an input the
+/// report must not overwrite.
+pub fn evaluate_seeds_with(
+    base: &Config,
+    sim: &SimOptions,
+    seeds: std::ops::RangeInclusive<u64>,
+    o: &EvalOptions,
+    config_path: Option<&Path>,
+) -> Result<String, String> {
+    let list: Vec<u64> = seeds.collect();
+    let mut rows: Vec<SeedRow> = Vec::new();
+    let case_list = cases(base, o.ablation);
+    let mut out = String::new();
+    let per_seed = Table::new(&[
+        ("seed", ""),
+        ("case", ""),
+        ("max roll", "deg"),
+        ("max pitch", "deg"),
+        ("rms yaw", "deg"),
+        ("rms bias", "deg/s"),
+        ("t max tilt", "s"),
+        ("man max roll", "deg"),
+        ("man max pitch", "deg"),
+        ("man rms yaw", "deg"),
+        ("oracle roll", "deg"),
+        ("oracle pitch", "deg"),
+    ])
+    .text_columns(2)
+    .width(0, 5)
+    .width(1, 22);
+    let mut win: Option<Window> = None;
+    for (i, &seed) in list.iter().enumerate() {
+        let mut so = sim.clone();
+        so.seed = seed;
+        let data = RunData::simulate(&so)?;
+        let w = Window::of(&data);
+        if win.is_none() {
+            if o.score_from >= w.end {
+                return Err(format!(
+                    "--score-from {} s is at or after the end of the runs ({:.1} s): nothing to score",
+                    o.score_from, w.end
+                ));
+            }
+            let head = format!(
+                "per seed: max roll/pitch, rms yaw, rms bias and the time of the largest tilt error over t = {:.1}..{:.1} s; \
+                 'man' over {}; 'oracle' the oracle floor there\n{}",
+                o.score_from,
+                w.end,
+                if w.is_empty() {
+                    "the manoeuvres (none in these runs)".to_string()
+                } else {
+                    format!("t = {:.1}..{:.1} s", w.start, w.end)
+                },
+                per_seed.header()
+            );
+            eprint!("{head}");
+            out += &head;
+            if w.is_empty() {
+                eprintln!("{}", w.warning());
+            }
+        }
+        let w = *win.get_or_insert(w);
+        let mut ms = Vec::new();
+        let mut man = Vec::new();
+        let mut orc = None;
+        for (name, c) in &case_list {
+            let mut c = c.clone();
+            if let Some(u) = &data.unit_config {
+                c.thermal = u.thermal.clone();
+                c.mounting = u.mounting.clone();
+                c.speed = u.speed.clone();
+            }
+            let (est, mode_s) = data.estimates(&c)?;
+            if orc.is_none() {
+                orc = Some(oracle(&data, &est, w.start).0);
+            }
+            ms.push(score(name, &data, &est, mode_s, o.score_from));
+            man.push(score(name, &data, &est, mode_s, w.start));
+        }
+        let orc = orc.ok_or("no case")?;
+        for (m, mm) in ms.iter().zip(&man) {
+            let brms = (m.bias_rms.iter().map(|b| b * b).sum::<f64>() / 3.0).sqrt();
+            let gone = |v: f64| if w.is_empty() { "-".to_string() } else { num(v, 3) };
+            let line = per_seed.line(&[
+                seed.to_string(),
+                m.name.clone(),
+                num(m.max_err[0], 3),
+                num(m.max_err[1], 3),
+                num(m.rms_err[2], 3),
+                num(brms, 5),
+                num(m.t_max_tilt, 1),
+                gone(mm.max_err[0]),
+                gone(mm.max_err[1]),
+                gone(mm.rms_err[2]),
+                gone(orc.max_err[0]),
+                gone(orc.max_err[1]),
+            ]);
+            out += &line;
+            eprint!("[{}/{}] {line}", i + 1, list.len());
+        }
+        rows.push(SeedRow { seed, cases: ms, manoeuvres: man, oracle: orc });
+    }
+    let w = win.ok_or("no seed")?;
+    let orc_med = median(&rows.iter().map(|r| r.oracle.tilt_max()).collect::<Vec<_>>());
+    let name =
+        format!("{}{}{}", sim.scenario, if sim.hard { " --hard" } else { "" }, if sim.power_on_moving { " --power-on-moving" } else { "" });
+    let duration = sim.duration.unwrap_or_else(|| sim::scenario::default_duration(&sim.scenario));
+    out += &format!("\nsummary over {} seeds of {name} ({duration} s)", rows.len());
+    if w.is_empty() {
+        out += &format!("\n{}\n", w.warning());
+    } else {
+        out += &format!(
+            "; oracle floor (median over the seeds of the max roll/pitch error, t = {:.1}..{:.1} s) {:.3} deg\n",
+            w.start, w.end, orc_med
+        );
+    }
+    let ratio_ok = !w.is_empty() && orc_med.is_finite() && orc_med > 0.0;
+    if !w.is_empty() && !ratio_ok {
+        let msg = format!("warning: the oracle floor is {orc_med} deg: no ratio to it is given");
+        eprintln!("{msg}");
+        out += &msg;
+        out += "\n";
+    }
+    out += "(worst = the largest over the seeds; median max = the median over the seeds of each seed's max roll/pitch error; \
+             ratio = median max / oracle floor; seeds <= 2 deg: seeds whose max roll and pitch error are within 2 deg)\n";
+    let summary = Table::new(&[
+        ("case", ""),
+        ("worst roll", "deg"),
+        ("worst pitch", "deg"),
+        ("median max", "deg"),
+        ("ratio to oracle", "x"),
+        ("worst rms yaw", "deg"),
+        ("seeds <= 2 deg", "of total"),
+        ("worst seed", ""),
+    ])
+    .width(0, 22);
+    let mut windows = vec![(format!("scored over t = {:.1}..{:.1} s", o.score_from, w.end), false)];
+    if !w.is_empty() {
+        windows.push((w.title(&sim.scenario), true));
+    }
+    for (title, man) in windows {
+        out += &format!("-- {title}\n");
+        out += &summary.header();
+        for (ci, (name, _)) in case_list.iter().enumerate() {
+            let pick = |r: &SeedRow| if man { r.manoeuvres[ci].clone() } else { r.cases[ci].clone() };
+            let per: Vec<Metrics> = rows.iter().map(pick).collect();
+            let wr = per.iter().map(|m| m.max_err[0]).fold(0.0, f64::max);
+            let wp = per.iter().map(|m| m.max_err[1]).fold(0.0, f64::max);
+            let med = median(&per.iter().map(|m| m.tilt_max()).collect::<Vec<_>>());
+            let wy = per.iter().map(|m| m.rms_err[2]).fold(0.0, f64::max);
+            let ok = per.iter().filter(|m| m.tilt_max() <= 2.0).count();
+            let worst = rows.iter().zip(&per).max_by(|a, b| a.1.tilt_max().total_cmp(&b.1.tilt_max())).map(|r| r.0.seed).unwrap_or(0);
+            out += &summary.line(&[
+                name.clone(),
+                num(wr, 3),
+                num(wp, 3),
+                num(med, 3),
+                if ratio_ok { num(med / orc_med, 2) } else { "-".into() },
+                num(wy, 3),
+                format!("{ok}/{}", rows.len()),
+                worst.to_string(),
+            ]);
+        }
+    }
+    if let Some(rd) = &o.out {
+        let json = serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
+        let inputs: Vec<&Path> = config_path.into_iter().collect();
+        write_reports(rd, &inputs, &[("report.json", json.into_bytes())])?;
+        out += &format!("wrote {}\n", rd.join("report.json").display());
+    }
+    Ok(out)
+}
