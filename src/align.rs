@@ -96,7 +96,7 @@ pub fn align(samples: &[Sample], cfg: &Config) -> Result<Alignment, String> {
     let mut bias_n = 0usize;
     for (k, s) in samples.iter().enumerate() {
         let g = s.gyro.map(|v| v * D2R);
-        let st = det.push(&g, &s.accel, dt, g0, &[0.0; 3], [f64::INFINITY; 3]);
+        let st = det.push(&g, &s.accel, dt, Some(g0), &[0.0; 3], [f64::INFINITY; 3]);
         if st.rest {
             for i in 0..3 {
                 bias_sum[i] += s.gyro[i];

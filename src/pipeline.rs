@@ -77,8 +77,8 @@ impl Report {
         let mut s = String::new();
         if let Some(c) = &self.mekf {
             s += &format!(
-                "standstill {:.1} s, re-levels {}, updates refused by the gate {:.1} s (longest run {:.1} s), velocity re-acquired {} times\n",
-                c.rest_s, c.relevels, c.gated_s, c.refused_max_s, c.reacquired
+                "standstill {:.1} s, re-levels {}, updates refused by the gate {:.1} s (longest run {:.1} s), velocity re-acquired {} times, restarts from the prior {}\n",
+                c.rest_s, c.relevels, c.gated_s, c.refused_max_s, c.reacquired, c.restarts
             );
             s += &match self.vehicle {
                 Some(true) => "vehicle model: on (no lateral/vertical velocity at the rear axle)\n".to_string(),

@@ -100,7 +100,7 @@ pub enum Mode {
     Paper,
     /// The default: a quaternion error-state Kalman filter (attitude, gyro
     /// bias, velocity) with standstill updates, the ground-vehicle
-    /// constraint and the paper's policy on top (`src/estimator/mekf.rs`).
+    /// constraint and the paper's policy on top (`src/estimator/mekf/`).
     /// `"robust"`, the previous default's name, selects it too.
     #[serde(alias = "robust")]
     Mekf,

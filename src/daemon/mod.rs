@@ -326,11 +326,14 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
                     notifier.reloading();
                     match Config::load(&config_path) {
                         Ok(new) => {
-                            let reopen = new.can.interface != cfg.can.interface || new.input.ids != cfg.input.ids || new.daemon.error_frames != cfg.daemon.error_frames;
+                            let was_speed = pipe.speed_id();
                             let carry = pipe.estimator().learned();
+                            let bus_changed = new.can.interface != cfg.can.interface || new.input.ids != cfg.input.ids || new.daemon.error_frames != cfg.daemon.error_frames;
                             cfg = new;
                             store = state_dir(&cfg).map(|d| Store::new(&d));
                             pipe = build_pipeline(&cfg, store.as_ref(), carry);
+                            // the kernel filters hold the speed message's ID too
+                            let reopen = bus_changed || pipe.speed_id() != was_speed;
                             info!(path = %config_path.display(), "config reloaded");
                             notifier.ready();
                             if reopen {
@@ -461,7 +464,7 @@ fn status_line(last: &Option<Estimate>, silent: bool, pipe: &Pipeline, shell: &S
     let r = pipe.report();
     let mut what = String::new();
     if let Some(k) = &r.mekf {
-        what = format!("; standstill {:.0} s, re-levels {}, refused {:.0} s", k.rest_s, k.relevels, k.gated_s);
+        what = format!("; standstill {:.0} s, re-levels {}, restarts {}, refused {:.0} s", k.rest_s, k.relevels, k.restarts, k.gated_s);
         if let Some(sp) = &r.speed {
             what += &format!(", speed used {:.0} s ({} frames, {} dropped)", k.speed_used_s, sp.decoded, sp.dropped());
         }

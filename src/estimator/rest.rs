@@ -11,8 +11,10 @@
 //!   RMS deviation, which engine idle vibration raises a little and driving
 //!   (road input, steering, speed changes) raises a lot;
 //! - rest needs the gyro deviation under `gyro_dev_dps`, the accelerometer
-//!   deviation under `accel_dev_g`, the low-passed |f| within `band` of g0
-//!   (a steady 0.2 g acceleration is 2 % off), and the low-passed,
+//!   deviation under `accel_dev_g`, the low-passed |f| within `band` of
+//!   gravity as this unit measures it (a steady 0.2 g acceleration is 2 %
+//!   off; the caller's reference: g0 when it was measured still, then |f| at
+//!   each rest; without one, within `UNANCHORED_BAND` of 1 g), and the low-passed,
 //!   bias-corrected rate under `rate_dps` plus three bias sigmas on every
 //!   axis (a steady turn is steady too; before the bias is known this test is
 //!   necessarily loose);
@@ -23,6 +25,12 @@
 //! - all of it for `min_s` seconds without a break.
 //!
 //! No allocation, O(1) per sample.
+
+/// Without a measured gravity reference (powered on while moving: g0 then
+/// holds the car's acceleration), |f| at rest must be within this of 1 g:
+/// loose enough for an accelerometer 1-2 % off scale (a phone), tight
+/// enough to refuse a steady 0.25 g acceleration.
+pub const UNANCHORED_BAND: f64 = 0.03;
 
 /// Thresholds of the detector (`[rest]` in the config).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -60,6 +68,9 @@ pub struct RestState {
     pub rest: bool,
     /// The conditions hold now (maybe not for `min_s` yet).
     pub quiet: bool,
+    /// The signals are steady (the deviation tests alone, without the band,
+    /// the rate and the drift tests).
+    pub steady: bool,
     /// Low-passed gyro (same unit as the input).
     pub gyro_lp: [f64; 3],
     /// Low-passed specific force, g.
@@ -98,9 +109,18 @@ impl RestDetector {
         self.held
     }
 
-    /// One sample: gyro, specific force (g), time step (s), g0 (g), the
-    /// current bias estimate and its 1-sigma per axis (gyro unit).
-    pub fn push(&mut self, gyro: &[f64; 3], accel: &[f64; 3], dt: f64, g0: f64, bias: &[f64; 3], bias_sigma: [f64; 3]) -> RestState {
+    /// One sample: gyro, specific force (g), time step (s), gravity's size as
+    /// this unit measures it (g; None: not measured yet), the current bias
+    /// estimate and its 1-sigma per axis (gyro unit).
+    pub fn push(
+        &mut self,
+        gyro: &[f64; 3],
+        accel: &[f64; 3],
+        dt: f64,
+        g_ref: Option<f64>,
+        bias: &[f64; 3],
+        bias_sigma: [f64; 3],
+    ) -> RestState {
         if !self.started {
             self.gyro_lp = *gyro;
             self.accel_lp = *accel;
@@ -131,7 +151,12 @@ impl RestDetector {
         let turning = (0..3).any(|i| (self.gyro_lp[i] - bias[i]).abs() > self.p.rate + 3.0 * bias_sigma[i]);
         let gd = self.p.gyro_dev;
         let ad = self.p.accel_dev;
-        let mut quiet = self.gyro_var < gd * gd && self.accel_var < ad * ad && (amag / g0 - 1.0).abs() < self.p.band && !turning;
+        let steady = self.gyro_var < gd * gd && self.accel_var < ad * ad;
+        let level = match g_ref {
+            Some(g) => (amag / g - 1.0).abs() < self.p.band,
+            None => (amag - 1.0).abs() < UNANCHORED_BAND,
+        };
+        let mut quiet = steady && level && !turning;
         if quiet && self.held == 0.0 {
             self.anchor = self.accel_lp;
         }
@@ -143,6 +168,7 @@ impl RestDetector {
         RestState {
             rest: self.held >= self.p.min_s,
             quiet,
+            steady,
             gyro_lp: self.gyro_lp,
             accel_lp: self.accel_lp,
             gyro_var: self.gyro_var,
@@ -176,14 +202,14 @@ mod tests {
             let g = [bias[0] + 0.003 * noise(3 * k), bias[1] + 0.003 * noise(3 * k + 1), bias[2] + 0.003 * noise(3 * k + 2)];
             let a = [0.005 * noise(7 * k), 0.005 * noise(7 * k + 1), -1.0 + 0.005 * noise(7 * k + 2)];
             // the bias is not known yet: sigma 0.1 rad/s
-            st = Some(d.push(&g, &a, dt, 1.0, &[0.0; 3], [0.1; 3]));
+            st = Some(d.push(&g, &a, dt, Some(1.0), &[0.0; 3], [0.1; 3]));
         }
         assert!(st.unwrap().rest, "a resting unit with a large bias is at rest");
         // driving: road vibration 0.1 g
         let mut moving = false;
         for k in 0..200u64 {
             let a = [0.1 * noise(5 * k), 0.1 * noise(5 * k + 1), -1.0 + 0.1 * noise(5 * k + 2)];
-            moving |= !d.push(&bias, &a, dt, 1.0, &bias, [0.001; 3]).rest;
+            moving |= !d.push(&bias, &a, dt, Some(1.0), &bias, [0.001; 3]).rest;
         }
         assert!(moving);
         assert_eq!(d.held(), 0.0);
@@ -196,21 +222,21 @@ mod tests {
         let mut d = RestDetector::new(params());
         let mut any = false;
         for _ in 0..600 {
-            any |= d.push(&[0.0; 3], &[0.2, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.001; 3]).rest;
+            any |= d.push(&[0.0; 3], &[0.2, 0.0, -1.0], dt, Some(1.0), &[0.0; 3], [0.001; 3]).rest;
         }
         assert!(!any, "a steady 0.2 g acceleration was taken for rest");
         // a steady 3 deg/s turn with the bias known to 0.001 rad/s
         let mut d = RestDetector::new(params());
         let mut any = false;
         for _ in 0..600 {
-            any |= d.push(&[0.0, 0.0, 0.052], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.001; 3]).rest;
+            any |= d.push(&[0.0, 0.0, 0.052], &[0.0, 0.0, -1.0], dt, Some(1.0), &[0.0; 3], [0.001; 3]).rest;
         }
         assert!(!any, "a steady turn was taken for rest");
         // the same turn rate as an unknown bias is rest
         let mut d = RestDetector::new(params());
         let mut last = false;
         for _ in 0..600 {
-            last = d.push(&[0.0, 0.0, 0.052], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.1; 3]).rest;
+            last = d.push(&[0.0, 0.0, 0.052], &[0.0, 0.0, -1.0], dt, Some(1.0), &[0.0; 3], [0.1; 3]).rest;
         }
         assert!(last);
     }
@@ -222,13 +248,13 @@ mod tests {
         let mut d = RestDetector::new(params());
         let dt = 0.005;
         for _ in 0..600 {
-            assert!(!d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.001; 3]).rest || d.held() > 0.0);
+            assert!(!d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, Some(1.0), &[0.0; 3], [0.001; 3]).rest || d.held() > 0.0);
         }
-        assert!(d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.001; 3]).rest);
+        assert!(d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, Some(1.0), &[0.0; 3], [0.001; 3]).rest);
         let mut ended = None;
         for k in 0..400 {
             let a = -0.09 * (k as f64 / 100.0).min(1.0);
-            if !d.push(&[0.0; 3], &[a, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.001; 3]).rest && ended.is_none() {
+            if !d.push(&[0.0; 3], &[a, 0.0, -1.0], dt, Some(1.0), &[0.0; 3], [0.001; 3]).rest && ended.is_none() {
                 ended = Some(k);
             }
         }
@@ -242,7 +268,7 @@ mod tests {
         let dt = 0.01;
         let mut first = None;
         for k in 0..300 {
-            let s = d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.0; 3]);
+            let s = d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, Some(1.0), &[0.0; 3], [0.0; 3]);
             if s.rest && first.is_none() {
                 first = Some(k);
             }
@@ -251,7 +277,27 @@ mod tests {
         let k = first.expect("rest detected");
         assert!(k >= 100, "rest after {k} samples, before min_s");
         // one jolt restarts the clock
-        d.push(&[0.5, 0.0, 0.0], &[0.3, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.0; 3]);
-        assert!(!d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, 1.0, &[0.0; 3], [0.0; 3]).rest);
+        d.push(&[0.5, 0.0, 0.0], &[0.3, 0.0, -1.0], dt, Some(1.0), &[0.0; 3], [0.0; 3]);
+        assert!(!d.push(&[0.0; 3], &[0.0, 0.0, -1.0], dt, Some(1.0), &[0.0; 3], [0.0; 3]).rest);
+    }
+
+    #[test]
+    fn without_a_gravity_reference_the_band_is_about_one_g() {
+        // a phone's accelerometer reads 0.988 g at rest: a rest without a
+        // reference (g0 measured while driving), outside the 0.5 % band of a
+        // reference of 1.011 g, and a steady 0.3 g is never one
+        let dt = 1.0 / 200.0;
+        let still = |g_ref: Option<f64>, f: [f64; 3]| {
+            let mut d = RestDetector::new(params());
+            let mut any = false;
+            for _ in 0..600 {
+                any |= d.push(&[0.0; 3], &f, dt, g_ref, &[0.0; 3], [0.001; 3]).rest;
+            }
+            any
+        };
+        assert!(still(None, [0.0, 0.0, -0.988]));
+        assert!(!still(Some(1.011), [0.0, 0.0, -0.988]));
+        assert!(still(Some(0.988), [0.0, 0.0, -0.988]));
+        assert!(!still(None, [0.3, 0.0, -1.0]));
     }
 }

@@ -1,6 +1,7 @@
 use super::quat;
 use super::*;
 use crate::adis::Sample;
+use std::f64::consts::PI;
 
 /// A unit at rest, level, heading `yaw_deg`, with a constant gyro bias.
 fn rest(cnt: u16, bias: [f64; 3], yaw_deg: f64, temp: f64) -> Sample {
@@ -532,4 +533,34 @@ fn mekf_learns_the_thermal_slope_from_standstills_at_different_temperatures() {
         assert!((p1[i] - truth[i]).abs() < 0.1 * truth[i].abs(), "axis {i}: learned {p1:?} vs {truth:?}");
     }
     assert!(e.slope_state().is_some());
+}
+
+#[test]
+fn mekf_powered_on_while_accelerating_reads_the_bias_at_the_first_stop() {
+    // A daemon restarted on the road, without a saved state: the first
+    // seconds hold a 0.15 g acceleration and engine vibration, so g0 (1.1 %
+    // above gravity) is not gravity's size. The first stop must still be a
+    // standstill that reads a bias of several deg/s.
+    let bias = [2.0, -1.5, 3.0];
+    let mut m = Motion::new(204.8, bias, 1.0, -2.0, 10.0);
+    let mut e = mekf("");
+    let mut est = Estimate::default();
+    let n = (204.8 * 4.0) as u32;
+    for k in 0..n {
+        let t = k as f64 / 204.8;
+        let vib = [0.06 * (2.0 * PI * 29.0 * t).sin(), 0.03 * (2.0 * PI * 23.0 * t).sin(), 0.05 * (2.0 * PI * 31.0 * t).sin()];
+        est = e.step(&m.step([0.0; 3], [0.15 + vib[0], vib[1], vib[2]]));
+    }
+    assert!(e.g0() > 1.008, "the test needs a g0 off gravity: {}", e.g0());
+    let mut stood = false;
+    for _ in 0..(204.8 * 8.0) as u32 {
+        est = e.step(&m.step([0.0; 3], [0.0; 3]));
+        stood |= est.flags & flags::STANDSTILL != 0;
+    }
+    assert!(stood, "the stop was never a standstill (g0 {})", e.g0());
+    for i in 0..3 {
+        assert!((est.bias[i] - bias[i]).abs() < 0.05, "axis {i}: {:?}", est.bias);
+    }
+    let t = m.euler();
+    assert!(angle_err(est.roll, t[0]) < 0.2 && angle_err(est.pitch, t[1]) < 0.2, "{est:?} vs {t:?}");
 }

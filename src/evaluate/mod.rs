@@ -131,7 +131,7 @@ pub struct EvaluateArgs {
     /// seed N. Required unless --input is given; needs --scenario.
     #[arg(long, value_name = "A..B", requires = "scenario")]
     pub seeds: Option<String>,
-    /// With --seeds: the scenario to simulate (static, chamber, paper, vehicle). Required with --seeds.
+    /// With --seeds: the scenario to simulate (static, chamber, paper, vehicle, urban). Required with --seeds.
     #[arg(long, value_name = "NAME", requires = "seeds")]
     pub scenario: Option<String>,
     /// With --seeds, vehicle only: add emergency brakes and swerves of 0.65-0.8 g. Off by default.

@@ -56,6 +56,16 @@ const D2R: f64 = std::f64::consts::PI / 180.0;
 /// A unit that becomes still at a speed above this (m/s, and above three
 /// sigmas) is cruising smoothly, not standing: no zero-velocity update.
 const CRUISE_SPEED: f64 = 1.0;
+/// A bias estimate further than this many prior sigmas (the part's turn-on
+/// range) from the prior is not a bias but a diverged filter: it restarts.
+const BIAS_LIMIT_SIGMAS: f64 = 4.0;
+/// Seconds of rest whose mean |f| becomes the rest detector's gravity.
+const G_REST_S: f64 = 3.0;
+/// Moving, the share of the time (low-passed over `LOST_TAU_S`) the gate
+/// refuses the velocity constraints beyond which the filter is lost (its
+/// attitude, not the vehicle, is wrong): it restarts from its prior.
+const LOST_SHARE: f64 = 0.8;
+const LOST_TAU_S: f64 = 5.0;
 /// Wheel speeds below this (m/s) are a standing car; above `WHEEL_MOVING` a
 /// moving one, whatever the IMU looks like.
 const WHEEL_STANDING: f64 = 0.05;
@@ -180,6 +190,8 @@ struct Outcome {
     fused: bool,
     learned: bool,
     refused: bool,
+    /// The zero-rate update was fused on every axis.
+    bias_read: bool,
 }
 
 /// Counters the filter keeps for the summary and the status.
@@ -194,6 +206,9 @@ pub struct MekfCounters {
     pub speed_used_s: f64,
     /// Times the velocity was widened after its constraints were refused for long.
     pub reacquired: u64,
+    /// Times the filter restarted from its prior because its bias left the
+    /// range the part allows (a diverged state, never a real bias).
+    pub restarts: u64,
 }
 
 #[derive(Clone, Debug)]
@@ -212,6 +227,21 @@ pub struct Mekf {
     dx: [f64; N],
     acc: Accum,
     rest: RestDetector,
+    /// Gravity's size as this unit measures it, for the rest detector: g0
+    /// when the unit was steady while it was measured, then |f| at rests.
+    g_ref: Option<f64>,
+    /// The signals were steady all through the g0 window (so far).
+    g0_steady: bool,
+    g0_decided: bool,
+    /// Sum of |f| dt and of dt over the rests.
+    g_rest: (f64, f64),
+    /// The bias prior at start (rad/s) and its 1-sigma.
+    prior: ([f64; 3], [f64; 3]),
+    /// Low-passed body-frame specific force and roll/pitch rate power, for
+    /// deciding from the measurements alone whether this is a vehicle.
+    body_f_lp: [f64; 3],
+    /// Low-passed share of the time the velocity constraints were refused.
+    refused_share: f64,
     last_rest: Option<RestState>,
     switching: Switching,
     dwell: f64,
@@ -291,6 +321,13 @@ impl Mekf {
             vehicle: true,
             xy_rate2: 0.0,
             g0: 1.0,
+            g_ref: None,
+            g0_steady: true,
+            g0_decided: false,
+            g_rest: (0.0, 0.0),
+            prior: ([0.0; 3], [0.0; 3]),
+            body_f_lp: [0.0, 0.0, -1.0],
+            refused_share: 0.0,
             bias_sigma_cache: [0.0; 3],
             alpha_dt: -1.0,
             alpha_acc: 0.0,
@@ -318,6 +355,8 @@ impl Mekf {
         self.q = quat::from_euler(roll, pitch, yaw);
         self.c = quat::to_matrix(&self.q);
         self.bias = bias;
+        self.prior = (bias, bias_sigma);
+        self.body_f_lp = *accel;
         self.v = [0.0; 3];
         self.scale = 0.0;
         self.f_lp = None;
@@ -475,9 +514,19 @@ impl Mekf {
             a.t += dt;
             a.turned += wn * dt;
             if self.vehicle && self.p.vehicle == Vehicle::Auto && !self.p.speed_aided {
-                self.xy_rate2 += (w[0] * w[0] + w[1] * w[1] - self.xy_rate2) * self.alpha_1s;
+                // decided on the measurements, never on the filter's own
+                // state (a diverged filter must not talk itself out of the
+                // vehicle model): the roll/pitch rates less the prior bias,
+                // and the tilt of the low-passed specific force
+                let (pb, _) = self.prior;
+                let (wx, wy) = (gyro[0] - pb[0], gyro[1] - pb[1]);
+                self.xy_rate2 += (wx * wx + wy * wy - self.xy_rate2) * self.alpha_1s;
+                for i in 0..3 {
+                    self.body_f_lp[i] += (s.accel[i] - self.body_f_lp[i]) * self.alpha_1s;
+                }
                 // a car body never tilts past 45 deg either
-                if self.xy_rate2 > self.p.handheld_rate * self.p.handheld_rate || self.c[2][2] < std::f64::consts::FRAC_1_SQRT_2 {
+                let upright = -self.body_f_lp[2] > std::f64::consts::FRAC_1_SQRT_2 * norm(&self.body_f_lp);
+                if self.xy_rate2 > self.p.handheld_rate * self.p.handheld_rate || !upright {
                     self.vehicle = false;
                 }
             }
@@ -506,8 +555,28 @@ impl Mekf {
             self.rest.reset();
             None
         } else {
-            Some(self.rest.push(&gyro, &s.accel, dt.max(1e-6), s.g0, &self.bias, bs))
+            Some(self.rest.push(&gyro, &s.accel, dt.max(1e-6), self.g_ref, &self.bias, bs))
         };
+        // g0 is gravity only if the unit was steady while it was measured
+        // (powered on while driving, it holds the car's acceleration)
+        if !self.g0_decided {
+            self.g0_steady &= rest.is_some_and(|r| r.steady);
+            if s.t >= self.p.g0_window_s {
+                self.g0_decided = true;
+                if self.g0_steady {
+                    self.g_ref = Some(s.g0);
+                }
+            }
+        }
+        if let Some(r) = rest.filter(|r| r.rest) {
+            // at rest |f| is gravity: its mean over the rests, used once it
+            // rests on enough of them (one short false rest must not set it)
+            self.g_rest.0 += norm(&r.accel_lp) * dt;
+            self.g_rest.1 += dt;
+            if self.g_rest.1 >= G_REST_S {
+                self.g_ref = Some(self.g_rest.0 / self.g_rest.1);
+            }
+        }
         let at_rest = rest.is_some_and(|r| r.rest);
         let turn = wn > self.p.turn_rate;
         let quiet = dec.band == Band::Inner && !dec.jerk && !turn && !s.suspect;
@@ -584,7 +653,13 @@ impl Mekf {
         // After a gap the velocity the filter holds is a guess (the unit may
         // have been re-mounted or stopped meanwhile): the first still period
         // is a standstill.
-        let cruising = !wheel_standing && !self.after_gap && self.still_speed.is_some_and(|(v, sv)| v > CRUISE_SPEED.max(3.0 * sv));
+        // Before the bias is known (powered on while driving, no saved
+        // state) the speed is the filter's guess, not evidence: a still
+        // period then is a standstill, as after a gap.
+        let cruising = !wheel_standing
+            && !self.after_gap
+            && (self.bias_known || wheel.is_some())
+            && self.still_speed.is_some_and(|(v, sv)| v > CRUISE_SPEED.max(3.0 * sv));
         let at_rest = still && !cruising;
         // The paper's policy: what takes the accelerometer for gravity (the
         // low-passed tilt and the bounded velocity of a unit that is not a
@@ -621,6 +696,8 @@ impl Mekf {
                 let (f, g) = self.velocity_updates(&omega, learn_v, self.p.gate);
                 o.fused |= f;
                 o.learned |= f && learn_v;
+                let k = (t / LOST_TAU_S).min(1.0);
+                self.refused_share += ((if g && !f { 1.0 } else { 0.0 }) - self.refused_share) * k;
                 if g {
                     fl |= flags::GATED;
                     self.counters.gated_s += t;
@@ -662,8 +739,26 @@ impl Mekf {
             self.counters.reacquired += 1;
         }
         self.inject();
-        if at_rest {
+        let (pb, ps) = self.prior;
+        // Before a standstill (or a saved state) has shown the bias, a bias
+        // beyond the part's range is the filter's divergence, not the part;
+        // a bias read at rest is evidence, whatever its size.
+        let lost = self.refused_share > LOST_SHARE;
+        let unbelievable = !self.bias_known
+            && !at_rest
+            && (0..3).any(|i| (self.bias[i] - pb[i]).abs() > BIAS_LIMIT_SIGMAS * ps[i].max(self.p.init_bias_sigma));
+        if lost || unbelievable {
+            self.restart_from_prior();
+            fl |= flags::RELEVEL;
+            self.tick_flags = fl;
+            return;
+        }
+        // known once a standstill has *read* it (a refused zero-rate update
+        // says the filter's bias is wrong, not known)
+        if at_rest && o.bias_read {
             self.bias_known = true;
+        }
+        if at_rest {
             self.rest_point = Some((temp, self.bias_deg(), t));
         } else {
             self.rest_point = None;
@@ -710,12 +805,15 @@ impl Mekf {
         }
         let gvar = self.last_rest.map_or(self.p.zru_floor, |r| r.gyro_var / 3.0);
         let r_zru = (gvar / n).max(self.p.zru_floor);
+        let mut read = 0;
         for i in 0..3 {
             let mut h = [0.0; N];
             h[BI + i] = 1.0;
             let u = self.update(&h, a.gyro[i] / n - self.bias[i], r_zru, all, gate);
+            read += (u == Upd::Fused) as u32;
             note(u, o);
         }
+        o.bias_read = read == 3;
         let f = [a.accel[0] / n, a.accel[1] / n, a.accel[2] / n];
         let fnm = norm(&f);
         if fnm > 0.5 {
@@ -732,6 +830,38 @@ impl Mekf {
             let up = self.update(&h, u[1], r_tilt, all, gate);
             note(up, o);
         }
+    }
+
+    /// A diverged state (its bias outside the part's range): start again
+    /// from the prior, the attitude from the low-passed specific force, the
+    /// heading and what was learned about gravity and the magnetometer kept.
+    fn restart_from_prior(&mut self) {
+        let (pb, ps) = self.prior;
+        let f = self.body_f_lp;
+        let yaw = quat::euler(&self.c)[2];
+        let (roll, pitch) = crate::estimator::ekf::tilt_from_accel(&f);
+        self.q = quat::from_euler(roll, pitch, yaw);
+        self.c = quat::to_matrix(&self.q);
+        self.bias = pb;
+        self.v = [0.0; 3];
+        self.cov = [[0.0; N]; N];
+        let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
+        for i in 0..3 {
+            self.cov[TH + i][TH + i] = a;
+            self.cov[BI + i][BI + i] = ps[i] * ps[i];
+            self.cov[VE + i][VE + i] = self.p.init_speed_sigma * self.p.init_speed_sigma;
+        }
+        self.cov[TH + 2][TH + 2] = (std::f64::consts::PI / 2.0).powi(2);
+        if self.p.speed_aided {
+            self.cov[SC][SC] = self.p.init_scale_sigma * self.p.init_scale_sigma;
+            self.scale = 0.0;
+        }
+        self.bias_known = false;
+        self.still_speed = None;
+        self.refused_still = 0.0;
+        self.nhc_refused = 0.0;
+        self.refused_share = 0.0;
+        self.counters.restarts += 1;
     }
 
     fn bias_deg(&self) -> [f64; 3] {
