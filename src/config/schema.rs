@@ -408,10 +408,14 @@ pub struct RestConfig {
     /// Largest RMS deviation of the gyro from its low-pass, deg/s (engine
     /// idle vibration passes, driving does not). Default 0.6.
     pub gyro_dev_dps: f64,
-    /// Largest RMS deviation of the specific force from its low-pass, g. Default 0.04.
+    /// Largest RMS deviation of the specific force from its low-pass (summed
+    /// over the axes), g: engine idle vibration of 0.02-0.04 g per axis
+    /// passes. Default 0.05.
     pub accel_dev_g: f64,
-    /// Largest | |f|/g0 - 1 | of the low-passed specific force (a steady
-    /// 0.1 g acceleration is 0.5 %). Default 0.005.
+    /// Largest | |f|/g - 1 | of the low-passed specific force, with g the
+    /// gravity this unit measures (g0 when it was steady while measured,
+    /// then the mean |f| over its rests; before either, 3 % about 1 g). A
+    /// steady 0.1 g acceleration is 0.5 %. Default 0.005.
     pub band: f64,
     /// Largest low-passed bias-corrected rate, deg/s (plus three bias sigmas). Default 0.5.
     pub rate_dps: f64,
@@ -422,7 +426,7 @@ pub struct RestConfig {
 
 impl Default for RestConfig {
     fn default() -> Self {
-        RestConfig { tau_s: 0.5, min_s: 1.0, gyro_dev_dps: 0.6, accel_dev_g: 0.04, band: 0.005, rate_dps: 0.5, drift_g: 0.01 }
+        RestConfig { tau_s: 0.5, min_s: 1.0, gyro_dev_dps: 0.6, accel_dev_g: 0.05, band: 0.005, rate_dps: 0.5, drift_g: 0.01 }
     }
 }
 
