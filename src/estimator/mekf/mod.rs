@@ -352,26 +352,10 @@ impl Mekf {
         if self.p.mag != MagUse::Off && mn > 0.1 && mn < 1.0 {
             yaw = wrap_pi(crate::estimator::ekf::heading_from_mag(magn, roll, pitch) + self.p.declination);
         }
-        self.q = quat::from_euler(roll, pitch, yaw);
-        self.c = quat::to_matrix(&self.q);
-        self.bias = bias;
         self.prior = (bias, bias_sigma);
         self.body_f_lp = *accel;
-        self.v = [0.0; 3];
-        self.scale = 0.0;
         self.f_lp = None;
-        self.cov = [[0.0; N]; N];
-        let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
-        for i in 0..3 {
-            self.cov[TH + i][TH + i] = a;
-            self.cov[BI + i][BI + i] = bias_sigma[i] * bias_sigma[i];
-            self.cov[VE + i][VE + i] = self.p.init_speed_sigma * self.p.init_speed_sigma;
-        }
-        // heading is far less known than tilt until the magnetometer speaks
-        self.cov[TH + 2][TH + 2] = (std::f64::consts::PI / 2.0).powi(2);
-        if self.p.speed_aided {
-            self.cov[SC][SC] = self.p.init_scale_sigma * self.p.init_scale_sigma;
-        }
+        self.initialise([roll, pitch, yaw], bias, bias_sigma);
         self.bias_known = known;
         self.bias_sigma_cache = self.bias_sigma();
         // with the car's own speed it is a vehicle
@@ -832,6 +816,28 @@ impl Mekf {
         }
     }
 
+    /// The state at power-on (and at a restart): the attitude given, the
+    /// bias and its sigma, the velocity unknown, no speed scale error.
+    fn initialise(&mut self, euler: [f64; 3], bias: [f64; 3], bias_sigma: [f64; 3]) {
+        self.q = quat::from_euler(euler[0], euler[1], euler[2]);
+        self.c = quat::to_matrix(&self.q);
+        self.bias = bias;
+        self.v = [0.0; 3];
+        self.scale = 0.0;
+        self.cov = [[0.0; N]; N];
+        let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
+        for i in 0..3 {
+            self.cov[TH + i][TH + i] = a;
+            self.cov[BI + i][BI + i] = bias_sigma[i] * bias_sigma[i];
+            self.cov[VE + i][VE + i] = self.p.init_speed_sigma * self.p.init_speed_sigma;
+        }
+        // heading is far less known than tilt until the magnetometer speaks
+        self.cov[TH + 2][TH + 2] = (std::f64::consts::PI / 2.0).powi(2);
+        if self.p.speed_aided {
+            self.cov[SC][SC] = self.p.init_scale_sigma * self.p.init_scale_sigma;
+        }
+    }
+
     /// A diverged state (its bias outside the part's range): start again
     /// from the prior, the attitude from the low-passed specific force, the
     /// heading and what was learned about gravity and the magnetometer kept.
@@ -840,22 +846,7 @@ impl Mekf {
         let f = self.body_f_lp;
         let yaw = quat::euler(&self.c)[2];
         let (roll, pitch) = crate::estimator::ekf::tilt_from_accel(&f);
-        self.q = quat::from_euler(roll, pitch, yaw);
-        self.c = quat::to_matrix(&self.q);
-        self.bias = pb;
-        self.v = [0.0; 3];
-        self.cov = [[0.0; N]; N];
-        let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
-        for i in 0..3 {
-            self.cov[TH + i][TH + i] = a;
-            self.cov[BI + i][BI + i] = ps[i] * ps[i];
-            self.cov[VE + i][VE + i] = self.p.init_speed_sigma * self.p.init_speed_sigma;
-        }
-        self.cov[TH + 2][TH + 2] = (std::f64::consts::PI / 2.0).powi(2);
-        if self.p.speed_aided {
-            self.cov[SC][SC] = self.p.init_scale_sigma * self.p.init_scale_sigma;
-            self.scale = 0.0;
-        }
+        self.initialise([roll, pitch, yaw], pb, ps);
         self.bias_known = false;
         self.still_speed = None;
         self.refused_still = 0.0;
