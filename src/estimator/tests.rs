@@ -564,3 +564,25 @@ fn mekf_powered_on_while_accelerating_reads_the_bias_at_the_first_stop() {
     let t = m.euler();
     assert!(angle_err(est.roll, t[0]) < 0.2 && angle_err(est.pitch, t[1]) < 0.2, "{est:?} vs {t:?}");
 }
+
+#[test]
+fn mekf_a_heading_the_gate_refuses_for_long_is_opened_to_the_field() {
+    // At rest, heading known from the field; then the field turns by 30 deg
+    // (the heading was set wrong, or the car was carried off on a ferry):
+    // the gate refuses it, but not for ever.
+    let mut m = Motion::new(204.8, [0.3, -0.2, 0.4], 1.0, -1.0, 20.0);
+    let mut e = mekf("use_magnetometer = true\n");
+    let mut est = Estimate::default();
+    for _ in 0..(204.8 * 10.0) as u32 {
+        est = e.step(&m.step([0.0; 3], [0.0; 3]));
+    }
+    let before = est.yaw;
+    let a = 30f64.to_radians();
+    m.field = [0.2 * a.cos(), 0.2 * a.sin(), 0.4];
+    for _ in 0..(204.8 * 30.0) as u32 {
+        est = e.step(&m.step([0.0; 3], [0.0; 3]));
+    }
+    let moved = angle_err(est.yaw, before);
+    assert!((moved - 30.0).abs() < 2.0, "heading moved by {moved} deg, the field by 30");
+    assert_eq!(est.flags & flags::MAG_DISTURBED, 0);
+}

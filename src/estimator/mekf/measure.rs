@@ -84,6 +84,15 @@ impl Mekf {
             return Some(false);
         }
         let dip = mn[2].atan2(h2.sqrt());
+        // the dip is measured with the filter's tilt: a reference taken
+        // before a standstill or a saved bias anchored that tilt (powered on
+        // while driving) is taken again once one has
+        if self.bias_known && self.mag_ref_weak {
+            self.mag_ref = None;
+        }
+        if self.mag_ref.is_none() {
+            self.mag_ref_weak = !self.bias_known;
+        }
         match self.mag_ref {
             None => {
                 if at_rest || self.mag_dist_s > 0.0 {
@@ -116,7 +125,21 @@ impl Mekf {
         h[TH] = mn[0] * mn[2] / h2;
         h[TH + 1] = mn[1] * mn[2] / h2;
         h[TH + 2] = -1.0;
-        Some(self.update(&h, nu, self.p.yaw_var, Gain { tilt: false, bias: learn }, gate) == Upd::Fused)
+        let u = self.update(&h, nu, self.p.yaw_var, Gain { tilt: false, bias: learn }, gate);
+        // an undisturbed field refused for long: the heading, not the field,
+        // is wrong (it was set with a wrong tilt, or drifted with a wrong z
+        // bias); open it to what the field says, never a lock-out
+        if u == Upd::Gated {
+            self.heading_refused += self.p.tick_s;
+            if self.heading_refused >= HEADING_REACQUIRE_S {
+                self.cov[TH + 2][TH + 2] = self.cov[TH + 2][TH + 2].max(nu * nu);
+                self.heading_refused = 0.0;
+                self.counters.reacquired += 1;
+            }
+        } else {
+            self.heading_refused = 0.0;
+        }
+        Some(u == Upd::Fused)
     }
 
     /// Re-level at rest: the accelerometer (low-passed over the rest) gives

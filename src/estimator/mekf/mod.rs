@@ -59,6 +59,9 @@ const CRUISE_SPEED: f64 = 1.0;
 /// A bias estimate further than this many prior sigmas (the part's turn-on
 /// range) from the prior is not a bias but a diverged filter: it restarts.
 const BIAS_LIMIT_SIGMAS: f64 = 4.0;
+/// Seconds of refused heading updates (field not disturbed) after which
+/// the heading is opened to what the field says.
+const HEADING_REACQUIRE_S: f64 = 5.0;
 /// Seconds of rest whose mean |f| becomes the rest detector's gravity.
 const G_REST_S: f64 = 3.0;
 /// Moving, the share of the time (low-passed over `LOST_TAU_S`) the gate
@@ -249,6 +252,10 @@ pub struct Mekf {
     /// (norm gauss, dip rad), the auto decision's sums.
     mag_on: Option<bool>,
     mag_ref: Option<(f64, f64)>,
+    /// The reference was taken before the tilt was anchored.
+    mag_ref_weak: bool,
+    /// Seconds the heading update has been refused without a break.
+    heading_refused: f64,
     mag_sum: f64,
     mag_n: u32,
     mag_disturbed: bool,
@@ -309,6 +316,8 @@ impl Mekf {
             dwell: 0.0,
             mag_on: None,
             mag_ref: None,
+            mag_ref_weak: false,
+            heading_refused: 0.0,
             mag_sum: 0.0,
             mag_n: 0,
             mag_disturbed: false,
@@ -848,6 +857,8 @@ impl Mekf {
         let (roll, pitch) = crate::estimator::ekf::tilt_from_accel(&f);
         self.initialise([roll, pitch, yaw], pb, ps);
         self.bias_known = false;
+        // the field's dip was measured with the diverged tilt
+        self.mag_ref = None;
         self.still_speed = None;
         self.refused_still = 0.0;
         self.nhc_refused = 0.0;
