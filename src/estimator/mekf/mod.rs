@@ -491,18 +491,22 @@ impl Mekf {
                 None => f,
                 Some(lp) => [lp[0] + (f[0] - lp[0]) * al, lp[1] + (f[1] - lp[1]) * al, lp[2] + (f[2] - lp[2]) * al],
             });
-            // v' = C f + g, in m/s^2 (the accelerometer reads g units; g0
-            // is not gravity's size when the unit was powered on moving)
+            // v' = (C f + e_z) g0 G: g0 is the unit's reading of 1 g. At rest
+            // this leaves g0 (1 - |f|) G, a few hundredths of m/s^2 that the
+            // zero-velocity update absorbs. The alternatives (standard
+            // gravity; f scaled by the rests' |f|) were measured on the
+            // simulator and the real recordings: none better beyond noise.
+            let gl = s.g0 * G;
             for i in 0..3 {
-                self.v[i] += f[i] * G * dt;
+                self.v[i] += f[i] * gl * dt;
             }
-            self.v[2] += G * dt;
+            self.v[2] += gl * dt;
             let a = &mut self.acc;
             for i in 0..3 {
                 for j in 0..3 {
                     a.s_c[i][j] += self.c[i][j] * dt;
                 }
-                a.dv[i] += f[i] * G * dt;
+                a.dv[i] += f[i] * gl * dt;
             }
             a.t += dt;
             a.turned += wn * dt;
