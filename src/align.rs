@@ -74,16 +74,7 @@ impl Alignment {
 /// Find the mounting from decoded samples (sensor frame).
 pub fn align(samples: &[Sample], cfg: &Config) -> Result<Alignment, String> {
     let p = cfg.profile();
-    let r = &cfg.rest;
-    let mut det = RestDetector::new(RestParams {
-        tau_s: r.tau_s,
-        min_s: r.min_s,
-        gyro_dev: r.gyro_dev_dps * D2R,
-        accel_dev: r.accel_dev_g,
-        band: r.band,
-        rate: r.rate_dps * D2R,
-        drift: r.drift_g,
-    });
+    let mut det = RestDetector::new(RestParams::from_config(&cfg.rest));
     let dt = 1.0 / p.rate_hz;
     // g0 over the first second, as the estimator does
     let n0 = (p.rate_hz as usize).clamp(1, samples.len().max(1));

@@ -5,44 +5,14 @@ use gyrocomp::sim::scenario::{motion, Ranges};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+mod common;
+
 const RATE: f64 = 204.8;
 
 fn truth(scenario: &str, hard: bool, seed: u64, duration: f64) -> Vec<Truth> {
     let r = Ranges::for_scenario(scenario);
     let spec = motion(scenario, hard, duration, &mut ChaCha8Rng::seed_from_u64(seed), &r).unwrap();
     TruthGen::new(&spec, RATE).collect()
-}
-
-fn mat_mul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let mut c = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            c[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
-        }
-    }
-    c
-}
-
-/// Rotation of a rotation vector (Rodrigues).
-fn exp_so3(w: [f64; 3]) -> [[f64; 3]; 3] {
-    let th = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
-    let k = [[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]];
-    let (a, b) = if th < 1e-12 { (1.0, 0.5) } else { (th.sin() / th, (1.0 - th.cos()) / (th * th)) };
-    let k2 = mat_mul(&k, &k);
-    let mut r = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            r[i][j] = if i == j { 1.0 } else { 0.0 } + a * k[i][j] + b * k2[i][j];
-        }
-    }
-    r
-}
-
-fn euler(c: &[[f64; 3]; 3]) -> [f64; 3] {
-    let roll = c[2][1].atan2(c[2][2]).to_degrees();
-    let pitch = (-c[2][0]).asin().to_degrees();
-    let yaw = c[1][0].atan2(c[0][0]).to_degrees();
-    [roll, pitch, yaw]
 }
 
 #[test]
@@ -57,8 +27,8 @@ fn body_rates_integrate_to_the_truth_attitude() {
     for k in 1..tr.len() {
         // trapezoid of the body rate over the step
         let w: Vec<f64> = (0..3).map(|i| 0.5 * (tr[k - 1].rate[i] + tr[k].rate[i]).to_radians() * dt).collect();
-        c = mat_mul(&c, &exp_so3([w[0], w[1], w[2]]));
-        let e = euler(&c);
+        c = common::mat_mul(&c, &common::exp_so3([w[0], w[1], w[2]]));
+        let e = common::euler_deg(&c);
         let want = [tr[k].roll, tr[k].pitch, tr[k].yaw];
         for i in 0..3 {
             worst = worst.max(wrap180(e[i] - want[i]).abs());

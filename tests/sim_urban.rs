@@ -20,35 +20,6 @@ mod common;
 
 const RATE: f64 = 204.8;
 
-fn mat_mul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let mut c = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            c[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
-        }
-    }
-    c
-}
-
-/// Rotation of a rotation vector (Rodrigues).
-fn exp_so3(w: [f64; 3]) -> [[f64; 3]; 3] {
-    let th = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
-    let k = [[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]];
-    let (a, b) = if th < 1e-12 { (1.0, 0.5) } else { (th.sin() / th, (1.0 - th.cos()) / (th * th)) };
-    let k2 = mat_mul(&k, &k);
-    let mut r = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            r[i][j] = if i == j { 1.0 } else { 0.0 } + a * k[i][j] + b * k2[i][j];
-        }
-    }
-    r
-}
-
-fn euler(c: &[[f64; 3]; 3]) -> [f64; 3] {
-    [c[2][1].atan2(c[2][2]).to_degrees(), (-c[2][0]).asin().to_degrees(), c[1][0].atan2(c[0][0]).to_degrees()]
-}
-
 fn urban(seed: u64, moving: bool) -> SimOptions {
     let mut o = SimOptions::new("urban", seed);
     o.power_on_moving = moving;
@@ -220,8 +191,8 @@ fn urban_truth_is_physically_consistent() {
     let mut worst_slip = 0.0f64;
     for k in 1..tr.len() {
         let wm: [f64; 3] = [0, 1, 2].map(|i| 0.5 * (tr[k - 1].rate[i] + tr[k].rate[i]).to_radians() * dt);
-        c = mat_mul(&c, &exp_so3(wm));
-        let e = euler(&c);
+        c = common::mat_mul(&c, &common::exp_so3(wm));
+        let e = common::euler_deg(&c);
         let want = [tr[k].roll, tr[k].pitch, tr[k].yaw];
         for i in 0..3 {
             worst_att = worst_att.max(wrap180(e[i] - want[i]).abs());

@@ -212,15 +212,7 @@ pub fn mekf_params(cfg: &Config) -> MekfParams {
         init_scale_sigma: 0.03,
         dwell_s: m.dwell_s,
         turn_rate: m.turn_rate_dps * D2R,
-        rest: RestParams {
-            tau_s: r.tau_s,
-            min_s: r.min_s,
-            gyro_dev: r.gyro_dev_dps * D2R,
-            accel_dev: r.accel_dev_g,
-            band: r.band,
-            rate: r.rate_dps * D2R,
-            drift: r.drift_g,
-        },
+        rest: RestParams::from_config(r),
         g0_window_s: cfg.estimator.g0_window_s,
         speed_aided: cfg.speed.enabled(),
     }

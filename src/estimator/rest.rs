@@ -44,6 +44,23 @@ pub struct RestParams {
     pub drift: f64,
 }
 
+impl RestParams {
+    /// The detector's thresholds from `[rest]`, rates in rad/s (the
+    /// estimator's unit).
+    pub fn from_config(r: &crate::config::RestConfig) -> RestParams {
+        const D2R: f64 = std::f64::consts::PI / 180.0;
+        RestParams {
+            tau_s: r.tau_s,
+            min_s: r.min_s,
+            gyro_dev: r.gyro_dev_dps * D2R,
+            accel_dev: r.accel_dev_g,
+            band: r.band,
+            rate: r.rate_dps * D2R,
+            drift: r.drift_g,
+        }
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct RestDetector {
     p: RestParams,

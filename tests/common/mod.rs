@@ -45,3 +45,35 @@ pub fn gentle_log_from(n: u32, bias: [f64; 3], t0_us: u64, cnt0: u16) -> Vec<u8>
 pub fn bin() -> std::path::PathBuf {
     std::path::PathBuf::from(env!("CARGO_BIN_EXE_gyrocomp"))
 }
+
+/// 3x3 matrix product (the simulator tests' own rotation algebra, independent
+/// of the estimator's `quat` module).
+pub fn mat_mul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut c = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            c[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    c
+}
+
+/// Rotation of a rotation vector (Rodrigues).
+pub fn exp_so3(w: [f64; 3]) -> [[f64; 3]; 3] {
+    let th = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+    let k = [[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]];
+    let (a, b) = if th < 1e-12 { (1.0, 0.5) } else { (th.sin() / th, (1.0 - th.cos()) / (th * th)) };
+    let k2 = mat_mul(&k, &k);
+    let mut r = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            r[i][j] = if i == j { 1.0 } else { 0.0 } + a * k[i][j] + b * k2[i][j];
+        }
+    }
+    r
+}
+
+/// Z-Y-X Euler angles of a body-to-navigation matrix, deg.
+pub fn euler_deg(c: &[[f64; 3]; 3]) -> [f64; 3] {
+    [c[2][1].atan2(c[2][2]).to_degrees(), (-c[2][0]).asin().to_degrees(), c[1][0].atan2(c[0][0]).to_degrees()]
+}
