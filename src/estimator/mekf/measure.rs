@@ -95,13 +95,9 @@ impl Mekf {
         }
         match self.mag_ref {
             None => {
-                if at_rest || self.mag_dist_s > 0.0 {
-                    self.mag_ref = Some((nrm, dip));
-                    self.mag_dist_s = 0.0;
-                } else {
-                    // no reference yet: take the first field as it is
-                    self.mag_ref = Some((nrm, dip));
-                }
+                // no reference (yet, or again): the field as it is now
+                self.mag_ref = Some((nrm, dip));
+                self.mag_dist_s = 0.0;
             }
             Some((rn, rd)) => {
                 let disturbed = ((nrm / rn) - 1.0).abs() > self.p.mag_norm_tol || (dip - rd).abs() > self.p.mag_dip_tol;

@@ -34,7 +34,10 @@
 //! innovation gate; the bias is learned only when the data say quasi-static:
 //! at rest, or with |a|/g0 inside the inner band, the acceleration-change
 //! criterion quiet, the turn rate low, for `dwell_s`. A gate that refuses
-//! at rest for `relevel_s` is a re-levelling (flagged), never a lock-out.
+//! at rest for `relevel_s` is a re-levelling (flagged), never a lock-out;
+//! a diverged state (a bias beyond the part's range before a standstill has
+//! read it, or velocity constraints refused most of the time) restarts from
+//! the prior (flagged, counted).
 
 mod kalman;
 mod measure;
