@@ -1,7 +1,7 @@
 //! gyrocomp: MEMS gyro bias compensation for ADIS-class IMUs on SocketCAN.
 //!
 //! The pure core (no I/O, no tokio): [`adis`] decoding, the estimator
-//! ([`ekf`], [`thermal`], [`switching`], [`estimator`]), [`output`] encoding,
+//! ([`estimator`] with [`estimator::ekf`] and [`estimator::switching`], [`thermal`]), [`output`] encoding,
 //! and the [`pipeline`] that chains them. Around it the I/O shell:
 //! [`candump`] log files, [`replay`], and the daemon.
 

@@ -11,6 +11,15 @@
 //! ordinary least squares on the mapped ("whitened") columns is the GLS
 //! estimate, and `log det(R + lam D) = sum_j log F_j`. `lam` is chosen by
 //! restricted maximum likelihood (REML), `s^2` concentrated out.
+//!
+//! With a **shared level** (`Design::shared_level`) the runs have one
+//! constant, and each run's own level is random: a turn-on offset of
+//! variance `s^2 mu` at power-on, then the walk from power-on on. The
+//! Kalman filter then starts each run at variance `mu + lam t_first`
+//! instead of at 0. `mu` is chosen by REML too: when the runs' levels agree
+//! with one thermal curve (as far as their walks allow) the levels carry the
+//! curve's information between ambients; when they differ (`mu` large) the
+//! fit reduces to the per-run constants.
 
 use nalgebra::DMatrix;
 
@@ -42,10 +51,17 @@ pub(crate) struct Whitener {
 }
 
 impl Whitener {
-    pub fn new(rows: &Rows, lam: f64) -> Whitener {
+    /// `mu`: None for a run with its own constant (the walk from 0 at the
+    /// first row); `Some(mu)` for a shared level (variance `mu` at power-on,
+    /// plus the walk until the first row).
+    pub fn new(rows: &Rows, lam: f64, mu: Option<f64>) -> Whitener {
         let n = rows.len();
         let (mut k, mut w) = (Vec::with_capacity(n), Vec::with_capacity(n));
-        let (mut p, mut log_det) = (0.0f64, 0.0f64);
+        let mut p = match (mu, rows.t.first()) {
+            (Some(m), Some(&t0)) => m + lam * t0.max(0.0),
+            _ => 0.0,
+        };
+        let mut log_det = 0.0f64;
         for j in 0..n {
             if j > 0 {
                 p += lam * (rows.t[j] - rows.t[j - 1]).max(0.0);
@@ -92,12 +108,15 @@ fn eval(c: Col, rows: &Rows, j: usize) -> f64 {
 /// One run's columns: (global column index, values on its rows).
 type RunColumns = Vec<(usize, Vec<f64>)>;
 
-/// Columns: one constant per run, then the shared polynomial `u^1..u^order`,
-/// then per run (in run order) its transient `exp(-t / tau)` when it has one
-/// and its own extra slope `u` when asked for.
+/// Columns: one constant per run (or one for all with a shared level), then
+/// the shared polynomial `u^1..u^order`, then per run (in run order) its
+/// transient `exp(-t / tau)` when it has one and its own extra slope `u`
+/// when asked for.
 pub(crate) struct Design<'a> {
     pub runs: &'a [Rows],
     pub order: usize,
+    /// One constant for all runs, each run's level random (fit with `mu`).
+    pub shared_level: bool,
     pub taus: Vec<Option<f64>>,
     pub own_slope: Vec<bool>,
     /// Per run: (global column, values on the rows), computed on first use
@@ -107,7 +126,33 @@ pub(crate) struct Design<'a> {
 
 impl<'a> Design<'a> {
     pub fn new(runs: &'a [Rows], order: usize) -> Design<'a> {
-        Design { runs, order, taus: vec![None; runs.len()], own_slope: vec![false; runs.len()], values: Default::default() }
+        Design {
+            runs,
+            order,
+            shared_level: false,
+            taus: vec![None; runs.len()],
+            own_slope: vec![false; runs.len()],
+            values: Default::default(),
+        }
+    }
+
+    /// The design with one constant for all runs (set before fitting).
+    pub fn shared(runs: &'a [Rows], order: usize) -> Design<'a> {
+        Design { shared_level: true, ..Design::new(runs, order) }
+    }
+
+    /// Columns before the polynomial: the runs' constants, or the one shared.
+    fn levels(&self) -> usize {
+        if self.shared_level {
+            1
+        } else {
+            self.runs.len()
+        }
+    }
+
+    /// Global column of `u^k` (k >= 1).
+    pub fn poly_col(&self, k: usize) -> usize {
+        self.levels() + k - 1
     }
 
     fn values(&self) -> &Vec<RunColumns> {
@@ -125,9 +170,10 @@ impl<'a> Design<'a> {
     /// (global column, column) of every column that is not zero on run `r`.
     fn columns(&self, r: usize) -> Vec<(usize, Col)> {
         let r_n = self.runs.len();
-        let mut v = vec![(r, Col::One)];
-        v.extend((0..self.order).map(|k| (r_n + k, Col::Poly(k + 1))));
-        let mut c = r_n + self.order;
+        let l_n = self.levels();
+        let mut v = vec![(if self.shared_level { 0 } else { r }, Col::One)];
+        v.extend((0..self.order).map(|k| (l_n + k, Col::Poly(k + 1))));
+        let mut c = l_n + self.order;
         for q in 0..r_n {
             if let Some(tau) = self.taus[q] {
                 if q == r {
@@ -146,7 +192,7 @@ impl<'a> Design<'a> {
     }
 
     pub fn p(&self) -> usize {
-        self.runs.len() + self.order + self.taus.iter().filter(|t| t.is_some()).count() + self.own_slope.iter().filter(|s| **s).count()
+        self.levels() + self.order + self.taus.iter().filter(|t| t.is_some()).count() + self.own_slope.iter().filter(|s| **s).count()
     }
 
     /// Global column of run `r`'s transient, and of its own slope.
@@ -223,6 +269,13 @@ pub(crate) fn solve(xtx: &DMatrix<f64>, xty: &[f64]) -> Option<(Vec<f64>, DMatri
 
 /// GLS of axis `axis` under design `d` at `lam`. None when the design is singular.
 pub(crate) fn fit_axis(d: &Design<'_>, axis: usize, lam: f64) -> Option<AxisGls> {
+    fit_axis_mu(d, axis, lam, None)
+}
+
+/// [`fit_axis`] with the shared level's `mu` (None: `mu` 0 for a shared
+/// level, unused for per-run constants).
+pub(crate) fn fit_axis_mu(d: &Design<'_>, axis: usize, lam: f64, mu: Option<f64>) -> Option<AxisGls> {
+    let mu = if d.shared_level { Some(mu.unwrap_or(0.0)) } else { None };
     let p = d.p();
     let mut xtx = DMatrix::zeros(p, p);
     let mut xty = vec![0.0; p];
@@ -234,7 +287,7 @@ pub(crate) fn fit_axis(d: &Design<'_>, axis: usize, lam: f64) -> Option<AxisGls>
             white.push((Vec::new(), Vec::new()));
             continue;
         }
-        let wh = Whitener::new(rows, lam);
+        let wh = Whitener::new(rows, lam, mu);
         log_det_v += wh.log_det;
         n += rows.len();
         let cols: RunColumns = d.values()[r].iter().map(|(g, v)| (*g, wh.apply(v.iter().copied()))).collect();
@@ -285,11 +338,56 @@ const GOLDEN_STEPS: usize = 16;
 /// REML estimate of `lam = q / s^2` for one axis: the coarse grid, then a
 /// golden-section search (in log10) around its best point.
 pub(crate) fn reml_lambda(d: &Design<'_>, axis: usize) -> f64 {
-    let f = |l10: f64| fit_axis(d, axis, 10f64.powf(l10)).map(|g| g.reml()).unwrap_or(f64::INFINITY);
-    let steps = (LAM_LOG10.1 - LAM_LOG10.0).round() as usize;
-    let grid: Vec<f64> = (0..=steps).map(|k| LAM_LOG10.0 + k as f64).collect();
-    let vals: Vec<f64> = grid.iter().map(|&g| f(g)).collect();
-    let zero = fit_axis(d, axis, 0.0).map(|g| g.reml()).unwrap_or(f64::INFINITY);
+    minimise_log10(LAM_LOG10, |v| fit_axis(d, axis, v).map(|g| g.reml()).unwrap_or(f64::INFINITY))
+}
+
+/// `mu` grid (relative to `s^2`): 0 and 10^-3 .. 10^8, one point a decade.
+const MU_LOG10: (f64, f64) = (-3.0, 8.0);
+/// Rounds of the alternating search over `lam` and `mu`.
+const SHARED_ROUNDS: usize = 2;
+
+/// REML estimates `(lam, mu)` of a shared-level design for one axis, by
+/// alternating 1-D searches from the per-run constants' `lam0`.
+pub(crate) fn reml_shared(d: &Design<'_>, axis: usize, lam0: f64) -> (f64, f64) {
+    let (mut lam, mut mu) = (lam0, 0.0);
+    let reml = |lam: f64, mu: f64| fit_axis_mu(d, axis, lam, Some(mu)).map(|g| g.reml()).unwrap_or(f64::INFINITY);
+    for _ in 0..SHARED_ROUNDS {
+        mu = minimise_log10(MU_LOG10, |m| reml(lam, m));
+        lam = minimise_log10(LAM_LOG10, |l| reml(l, mu));
+    }
+    (lam, mu)
+}
+
+/// The largest `mu` whose restricted likelihood (at `lam`) is within
+/// `chi2` (on the `-2 log` scale) of the best: the upper end of `mu`'s
+/// profile interval, found by bisection in log10 up to the grid's end.
+pub(crate) fn mu_upper(d: &Design<'_>, axis: usize, lam: f64, mu: f64, chi2: f64) -> f64 {
+    let reml = |m: f64| fit_axis_mu(d, axis, lam, Some(m)).map(|g| g.reml()).unwrap_or(f64::INFINITY);
+    let best = reml(mu);
+    let top = 10f64.powf(MU_LOG10.1);
+    if reml(top) - best <= chi2 {
+        return top;
+    }
+    let (mut a, mut b) = (if mu > 0.0 { mu.log10() } else { MU_LOG10.0 - 3.0 }, MU_LOG10.1);
+    for _ in 0..30 {
+        let c = 0.5 * (a + b);
+        if reml(10f64.powf(c)) - best <= chi2 {
+            a = c;
+        } else {
+            b = c;
+        }
+    }
+    10f64.powf(a)
+}
+
+/// Minimise `f(v)` over `v >= 0`: 0 and the decades `10^range.0 .. 10^range.1`,
+/// then a golden-section search (in log10) within +-1 decade of the best.
+fn minimise_log10(range: (f64, f64), f: impl Fn(f64) -> f64) -> f64 {
+    let g10 = |l10: f64| f(10f64.powf(l10));
+    let steps = (range.1 - range.0).round() as usize;
+    let grid: Vec<f64> = (0..=steps).map(|k| range.0 + k as f64).collect();
+    let vals: Vec<f64> = grid.iter().map(|&g| g10(g)).collect();
+    let zero = f(0.0);
     let (kb, vb) = vals.iter().enumerate().fold((0, f64::INFINITY), |(kb, vb), (k, &v)| if v < vb { (k, v) } else { (kb, vb) });
     if !vb.is_finite() || zero <= vb {
         return 0.0;
@@ -297,20 +395,20 @@ pub(crate) fn reml_lambda(d: &Design<'_>, axis: usize) -> f64 {
     let (mut a, mut b) = (grid[kb] - 1.0, grid[kb] + 1.0);
     let g = (5f64.sqrt() - 1.0) / 2.0;
     let (mut c, mut e) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fe) = (f(c), f(e));
+    let (mut fc, mut fe) = (g10(c), g10(e));
     for _ in 0..GOLDEN_STEPS {
         if fc < fe {
             b = e;
             e = c;
             fe = fc;
             c = b - g * (b - a);
-            fc = f(c);
+            fc = g10(c);
         } else {
             a = c;
             c = e;
             fc = fe;
             e = a + g * (b - a);
-            fe = f(e);
+            fe = g10(e);
         }
     }
     let (l, v) = if fc < fe { (c, fc) } else { (e, fe) };
@@ -346,7 +444,7 @@ impl TauSearch {
                 runs.iter()
                     .zip(grids)
                     .map(|(rows, grid)| {
-                        let wh = Whitener::new(rows, lams[axis]);
+                        let wh = Whitener::new(rows, lams[axis], None);
                         let n = rows.len();
                         let mut base: Vec<Vec<f64>> = vec![wh.apply(std::iter::repeat_n(1.0, n))];
                         for k in 1..=order {
@@ -422,7 +520,7 @@ mod tests {
         let r = [1.0, 1.0, 2.0, 1.0, 1.5, 1.0];
         let rows = Rows { t: t.to_vec(), u: vec![0.0; 6], y: vec![[0.0; 3]; 6], r: r.to_vec() };
         let lam = 0.3;
-        let wh = Whitener::new(&rows, lam);
+        let wh = Whitener::new(&rows, lam, None);
         let n = t.len();
         let v = DMatrix::from_fn(n, n, |a, b| if a == b { r[a] } else { 0.0 } + lam * (t[a.min(b)] - t[0]));
         // whiten the identity: W = L^-1, then W V W^T must be I

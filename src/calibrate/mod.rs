@@ -69,17 +69,29 @@
 //!    Every decision is printed per run. The command fails only when no run
 //!    is left; when every run was left out as not separable, they are used
 //!    anyway with their cuts, with a warning that the slope may be biased.
-//! 7. **Fit.** After the cuts, `bias = c_run + sum_k a_k (T - t0)^k`,
-//!    k = 1..order, by GLS (step 5) on the 1-s bins, per axis.
-//!    `p1 = a_1`, `p3 = a_2`, `p4 = a_3`; `p2` = the mean of the runs'
-//!    `c_run` (the mean turn-on bias at t0; the runs differ by a constant, so
-//!    the absolute value is only a prior).
+//! 7. **Fit.** After the cuts, per axis, by GLS (step 5) on the 1-s bins,
+//!    one of two level models ([`Levels`]):
+//!    - **one curve**: `bias = p2 + u_run + sum_k a_k (T - t0)^k`, `u_run` a
+//!      random turn-on offset of standard deviation `sigma_u` at power-on
+//!      (the walk from power-on on), `sigma_u` by REML with the walk
+//!      (`gls::reml_shared`). The runs' levels at their ambients then carry
+//!      the slope as well as the temperature changes within them;
+//!    - **each run its own**: `bias = c_run + sum_k a_k (T - t0)^k`, `p2` the
+//!      mean `c_run`: only the changes within runs carry the slope.
+//!
+//!    One curve is used when the levels agree with it: `sigma_u = 0` is not
+//!    rejected (REML drop <= [`SPREAD_TEST_CHI2`], 1 %). `p1 = a_1`,
+//!    `p3 = a_2`, `p4 = a_3`.
 //! 8. **Confidence intervals (95 %).** For `a_k`: `t * SE`, `SE` from the GLS
 //!    (`s^2 (X~^T X~)^-1`), `t` the Student quantile with `n - p` degrees of
 //!    freedom, times `sqrt((1 + rho) / (1 - rho))` when the whitened
 //!    residuals' lag-1 autocorrelation `rho` is positive (what the walk model
-//!    leaves unexplained). For `p2`: `t * sd(c_run) / sqrt(runs)` with
-//!    runs - 1 degrees of freedom (none with one run).
+//!    leaves unexplained). With one curve, `SE` is the larger of those at the
+//!    REML `sigma_u` and at its one-sided 95 % upper bound
+//!    ([`MU_UPPER_CHI2`]): a few runs say little about a spread. For `p2`:
+//!    with one curve its GLS `SE` the same way; else
+//!    `t * sd(c_run) / sqrt(runs)` with runs - 1 degrees of freedom (none
+//!    with one run).
 //! 9. **Warnings**: range covered (over the bins used) under 10 deg C, runs
 //!    not static, transients not separable or at the limit, runs left out,
 //!    counter restarts in a log, timestamps going backwards.
@@ -96,7 +108,7 @@ pub use chamber::ChamberRun;
 pub use read::{read_run, read_run_from, Bin, Run};
 
 use crate::config::Config;
-use gls::{fit_axis, reml_lambda, Design, Rows};
+use gls::{fit_axis, fit_axis_mu, mu_upper, reml_lambda, reml_shared, Design, Rows};
 use std::path::{Path, PathBuf};
 
 /// Bin length, seconds.
@@ -137,8 +149,20 @@ pub const TILT_LIMIT_DEG: f64 = 1.0;
 pub const MEDIAN_HALF: usize = 15;
 pub const MOVING_MARGIN: usize = 5;
 
+/// `-2 log` restricted-likelihood drop that bounds the run-to-run spread
+/// from above (one-sided 95 %: the chi-square(1) 90 % point).
+pub const MU_UPPER_CHI2: f64 = 2.71;
+
+/// `-2 log` restricted-likelihood drop at which the runs' levels are taken
+/// to differ (a run-to-run turn-on spread beyond the walks, at 1 %): each run
+/// then gets its own constant. A stricter test would let a real spread into
+/// the shared level; a looser one throws away the levels' slope information
+/// on 1 in 20 good calibrations (measured in docs/calibrate.md).
+pub const SPREAD_TEST_CHI2: f64 = 6.63;
+
 /// How the intervals are computed (printed with them).
-pub const INTERVAL_METHOD: &str = "GLS with a bias random walk + white noise (REML), Student t";
+pub const INTERVAL_METHOD: &str =
+    "GLS with a run-to-run turn-on spread, a bias random walk and white noise (REML), at the spread's 95 % upper bound, Student t";
 
 #[derive(Debug, thiserror::Error)]
 pub enum CalError {
@@ -214,6 +238,26 @@ pub struct RunReport {
     pub short_bins: usize,
 }
 
+/// How the runs' turn-on levels enter one axis's fit (step 7).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Levels {
+    /// One level for all runs, each run's offset random: `spread` its REML
+    /// standard deviation, `upper` the upper end of its one-sided 95 %
+    /// profile interval (deg/s). The levels at the different ambients carry
+    /// the slope too.
+    Shared { spread: f64, upper: f64 },
+    /// The runs' levels differ beyond their walks (or one run): each run its
+    /// own constant; `spread` the constants' standard deviation (deg/s).
+    /// Only the temperature's change within the runs carries the slope.
+    PerRun { spread: f64 },
+}
+
+impl Default for Levels {
+    fn default() -> Levels {
+        Levels::PerRun { spread: f64::NAN }
+    }
+}
+
 /// The fitted curve of one axis.
 #[derive(Clone, Debug, Default)]
 pub struct AxisFit {
@@ -226,8 +270,9 @@ pub struct AxisFit {
     /// Mean turn-on bias at t0 over the runs, and its 95 % half-width (NaN with one run).
     pub p2: f64,
     pub p2_ci: f64,
-    /// Run-to-run standard deviation of the turn-on bias.
-    pub turn_on_sd: f64,
+    /// How the runs' levels entered the fit, with the run-to-run spread of
+    /// the turn-on bias.
+    pub levels: Levels,
     /// RMS of the residuals of the 1-s means (walk included), deg/s.
     pub rms: f64,
     /// Lag-1 autocorrelation of the whitened residuals.
@@ -470,45 +515,52 @@ pub fn calibrate_runs(runs: &[Run], order: u8, t0: f64) -> Result<Calibration, C
     let rows: Vec<Rows> = used.iter().map(|&r| prep[r].rows(t0, scale, cuts[r])).collect();
     let d = Design::new(&rows, order_u);
     let lams = [0, 1, 2].map(|i| reml_lambda(&d, i));
-    let fits = (0..3).map(|i| fit_axis(&d, i, lams[i])).collect::<Option<Vec<_>>>().ok_or_else(|| {
+    let not_determined = || {
         CalError::Fit(format!(
             "order {order} is not determined by these runs (temperature varies too little within the runs after the warm-up cut)"
         ))
-    })?;
+    };
+    // each run's own constant: what each run read at t0 (the per-run report)
+    let own = (0..3).map(|i| fit_axis(&d, i, lams[i])).collect::<Option<Vec<_>>>().ok_or_else(not_determined)?;
     let u_n = used.len();
-    let n = fits[0].n;
-    let p = fits[0].p;
-    let tq = t975(n - p);
-    let axes = [0, 1, 2].map(|i| {
-        let g = &fits[i];
-        let infl = if g.rho > 0.0 { ((1.0 + g.rho) / (1.0 - g.rho).max(1e-3)).sqrt() } else { 1.0 };
-        let mut coeffs = Vec::with_capacity(order_u);
-        let mut ci = Vec::with_capacity(order_u);
-        let mut se = Vec::with_capacity(order_u);
-        for k in 0..order_u {
-            let sk = scale.powi(k as i32 + 1);
-            let c = u_n + k;
-            coeffs.push(g.beta[c] / sk);
-            se.push(g.se(c) * infl / sk);
-            ci.push(tq * g.se(c) * infl / sk);
-        }
-        let offs: Vec<f64> = (0..u_n).map(|q| g.beta[q]).collect();
-        let mean = offs.iter().sum::<f64>() / u_n as f64;
-        let sd = if u_n > 1 { (offs.iter().map(|o| (o - mean) * (o - mean)).sum::<f64>() / (u_n - 1) as f64).sqrt() } else { f64::NAN };
-        let s2 = g.s2();
-        AxisFit {
-            coeffs,
-            ci,
-            se,
-            p2: mean,
-            p2_ci: if u_n > 1 { t975(u_n - 1) * sd / (u_n as f64).sqrt() } else { f64::NAN },
-            turn_on_sd: sd,
-            rms: (g.raw_ss / n as f64).sqrt(),
-            rho: g.rho,
-            white: s2.sqrt(),
-            walk: (lams[i] * s2).sqrt(),
-        }
-    });
+    let n = own[0].n;
+    let ds = Design::shared(&rows, order_u);
+    let mut axes = Vec::with_capacity(3);
+    for i in 0..3 {
+        let own = &own[i];
+        // the curve: one level for all runs, each run's turn-on offset random
+        // (step 7), unless the runs' levels say they differ
+        let (lam, mu) = reml_shared(&ds, i, lams[i]);
+        let reml_at = |m: f64| fit_axis_mu(&ds, i, lam, Some(m)).map(|g| g.reml()).unwrap_or(f64::INFINITY);
+        let shared = u_n > 1 && reml_at(0.0) - reml_at(mu) <= SPREAD_TEST_CHI2;
+        let axis = if shared {
+            let g = fit_axis_mu(&ds, i, lam, Some(mu)).ok_or_else(not_determined)?;
+            // the interval at the largest spread the runs allow, if wider
+            let up = mu_upper(&ds, i, lam, mu, MU_UPPER_CHI2);
+            let wide = fit_axis_mu(&ds, i, lam, Some(up)).ok_or_else(not_determined)?;
+            let s2 = g.s2();
+            let cols: Vec<usize> = (1..=order_u).map(|k| ds.poly_col(k)).collect();
+            let mut a = axis_fit(&g, Some(&wide), &cols, scale);
+            a.p2 = g.beta[0];
+            a.p2_ci = t975(g.n - g.p) * g.se(0).max(wide.se(0)) * inflation(g.rho);
+            a.levels = Levels::Shared { spread: (mu * s2).sqrt(), upper: (up * s2).sqrt() };
+            a.walk = (lam * s2).sqrt();
+            a
+        } else {
+            let cols: Vec<usize> = (1..=order_u).map(|k| d.poly_col(k)).collect();
+            let mut a = axis_fit(own, None, &cols, scale);
+            let offs: Vec<f64> = (0..u_n).map(|q| own.beta[q]).collect();
+            let mean = offs.iter().sum::<f64>() / u_n as f64;
+            let sd = if u_n > 1 { (offs.iter().map(|o| (o - mean) * (o - mean)).sum::<f64>() / (u_n - 1) as f64).sqrt() } else { f64::NAN };
+            a.p2 = mean;
+            a.p2_ci = if u_n > 1 { t975(u_n - 1) * sd / (u_n as f64).sqrt() } else { f64::NAN };
+            a.levels = Levels::PerRun { spread: sd };
+            a.walk = (lams[i] * own.s2()).sqrt();
+            a
+        };
+        axes.push(AxisFit { rms: (own.raw_ss / n as f64).sqrt(), ..axis });
+    }
+    let axes: [AxisFit; 3] = axes.try_into().expect("three axes");
     let mut range = (f64::INFINITY, f64::NEG_INFINITY);
     let mut data = Vec::with_capacity(r_n);
     for r in 0..r_n {
@@ -523,7 +575,7 @@ pub fn calibrate_runs(runs: &[Run], order: u8, t0: f64) -> Result<Calibration, C
         if rep.used {
             rep.used_temp = ur;
             let q = used.iter().position(|&x| x == r).expect("used run");
-            rep.offset = [0, 1, 2].map(|i| fits[i].beta[q]);
+            rep.offset = [0, 1, 2].map(|i| own[i].beta[q]);
             range = (range.0.min(ur.0), range.1.max(ur.1));
         } else {
             rep.used_temp = (f64::NAN, f64::NAN);
@@ -539,6 +591,33 @@ pub fn calibrate_runs(runs: &[Run], order: u8, t0: f64) -> Result<Calibration, C
         ));
     }
     Ok(Calibration { order, t0, axes, range, bins_used: n, runs: reports, warnings, data })
+}
+
+/// `sqrt((1 + rho) / (1 - rho))` for a positive lag-1 autocorrelation of
+/// the whitened residuals (what the walk model leaves unexplained), else 1.
+fn inflation(rho: f64) -> f64 {
+    if rho > 0.0 {
+        ((1.0 + rho) / (1.0 - rho).max(1e-3)).sqrt()
+    } else {
+        1.0
+    }
+}
+
+/// The curve's coefficients (columns `cols` of `g`, scaled back by
+/// `scale^k`) with 95 % intervals: Student t times the standard error,
+/// the larger of `g`'s and `wide`'s, times the autocorrelation inflation.
+fn axis_fit(g: &gls::AxisGls, wide: Option<&gls::AxisGls>, cols: &[usize], scale: f64) -> AxisFit {
+    let infl = inflation(g.rho);
+    let tq = t975(g.n - g.p);
+    let mut a = AxisFit { rho: g.rho, white: g.s2().sqrt(), ..AxisFit::default() };
+    for (k, &c) in cols.iter().enumerate() {
+        let sk = scale.powi(k as i32 + 1);
+        let se = g.se(c).max(wide.map_or(0.0, |w| w.se(c)));
+        a.coeffs.push(g.beta[c] / sk);
+        a.se.push(se * infl / sk);
+        a.ci.push(tq * se * infl / sk);
+    }
+    a
 }
 
 fn no_run_left(reports: &[RunReport]) -> CalError {

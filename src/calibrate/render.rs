@@ -1,6 +1,6 @@
 //! The report, the `[thermal]` section `--write` emits, and the curve.
 
-use super::{CalError, Calibration, RunReport, Warmup, AXES, CUT_TAUS, INTERVAL_METHOD};
+use super::{CalError, Calibration, Levels, RunReport, Warmup, AXES, CUT_TAUS, INTERVAL_METHOD};
 use crate::config::ThermalConfig;
 use crate::thermal::Thermal;
 use std::fmt::Write as _;
@@ -120,13 +120,14 @@ impl Calibration {
                 line += &format!(" p2 = {:.4} deg/s (one run: no interval),", a.p2);
             }
             line += &format!(
-                " residual RMS {:.4} deg/s, range {:.1}..{:.1} deg C ({:.1} deg C); noise: white {:.4} deg/s per 1-s mean, bias walk {:.5} deg/s/sqrt(s)",
+                " residual RMS {:.4} deg/s, range {:.1}..{:.1} deg C ({:.1} deg C); noise: white {:.4} deg/s per 1-s mean, bias walk {:.5} deg/s/sqrt(s); {}",
                 a.rms,
                 self.range.0,
                 self.range.1,
                 self.range.1 - self.range.0,
                 a.white,
-                a.walk
+                a.walk,
+                levels_text(a.levels)
             );
             let _ = writeln!(s, "{line}");
         }
@@ -134,6 +135,19 @@ impl Calibration {
             let _ = writeln!(s, "warning: {w}");
         }
         s
+    }
+}
+
+/// How the runs' levels entered the fit.
+fn levels_text(l: Levels) -> String {
+    match l {
+        Levels::Shared { spread, upper } => {
+            format!("levels: one curve, run-to-run turn-on spread {spread:.4} deg/s (at most {upper:.4})")
+        }
+        Levels::PerRun { spread } if spread.is_finite() => {
+            format!("levels: each run its own (turn-on spread {spread:.4} deg/s, beyond the walks)")
+        }
+        Levels::PerRun { .. } => "levels: one run".into(),
     }
 }
 

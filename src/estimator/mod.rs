@@ -447,8 +447,7 @@ impl Estimator {
                     m.resync(att * att, 4.0 + (3.0 * gap).powi(2));
                 }
                 let (mode, ffl) = m.step(&inp);
-                let a = accel;
-                let ratio = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt() / self.g0;
+                let ratio = m.accel_ratio();
                 let b = m.bias;
                 let sp = m.rest_point.take();
                 (mode, ffl, ratio, m.euler(), [b[0] * R2D, b[1] * R2D, b[2] * R2D], sp, m.started())

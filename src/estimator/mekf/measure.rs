@@ -83,7 +83,7 @@ impl Mekf {
         if nrm < 1e-6 || h2 < 1e-12 {
             return Some(false);
         }
-        let dip = mn[2].atan2(h2.sqrt());
+        let dip = quat::atan2(mn[2], h2.sqrt());
         // the dip is measured with the filter's tilt: a reference taken
         // before a standstill or a saved bias anchored that tilt (powered on
         // while driving) is taken again once one has
@@ -115,7 +115,7 @@ impl Mekf {
                 self.mag_dist_s = 0.0;
             }
         }
-        let psi = mn[1].atan2(mn[0]);
+        let psi = quat::atan2(mn[1], mn[0]);
         let nu = wrap_pi(psi - self.p.declination);
         let mut h = [0.0; N];
         h[TH] = mn[0] * mn[2] / h2;

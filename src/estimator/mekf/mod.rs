@@ -221,6 +221,8 @@ pub struct MekfCounters {
 pub struct Mekf {
     p: MekfParams,
     started: bool,
+    /// `|a| / g0` of the last sample (the switching policy's ratio).
+    accel_ratio: f64,
     q: Quat,
     c: Mat3,
     /// Bias, rad/s.
@@ -304,6 +306,7 @@ impl Mekf {
         Mekf {
             p,
             started: false,
+            accel_ratio: 1.0,
             q: [1.0, 0.0, 0.0, 0.0],
             c: quat::to_matrix(&[1.0, 0.0, 0.0, 0.0]),
             bias: [0.0; 3],
@@ -380,6 +383,11 @@ impl Mekf {
         self.mode = 2;
         self.tick_flags = 0;
         self.started = true;
+    }
+
+    /// `|a| / g0` of the last sample, as the switching policy read it.
+    pub fn accel_ratio(&self) -> f64 {
+        self.accel_ratio
     }
 
     pub fn started(&self) -> bool {
@@ -548,6 +556,7 @@ impl Mekf {
         }
         // Policy: the paper's switching, the turn rate, the dwell.
         let dec = self.switching.classify(&s.accel, s.g0);
+        self.accel_ratio = dec.ratio;
         // Before the first standstill any steady rate may be the bias: the
         // first rest after power-on initialises it, whatever its size.
         let bs = if self.bias_known { self.bias_sigma_cache } else { [f64::INFINITY; 3] };
