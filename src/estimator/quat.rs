@@ -219,7 +219,8 @@ mod tests {
 
     #[test]
     fn euler_pitch_is_accurate_near_vertical() {
-        for p in [1.5707, 1.57079, -1.5707963, 1.0e-9] {
+        let h = std::f64::consts::FRAC_PI_2;
+        for p in [h - 1e-4, h - 1e-5, -(h - 1e-7), 1.0e-9] {
             let e = euler(&matrix_from_euler(0.3, p, -0.7));
             assert!((e[1] - p).abs() < 1e-8, "{p}: {e:?}");
         }
