@@ -269,13 +269,12 @@ pub(crate) fn solve(xtx: &DMatrix<f64>, xty: &[f64]) -> Option<(Vec<f64>, DMatri
 
 /// GLS of axis `axis` under design `d` at `lam`. None when the design is singular.
 pub(crate) fn fit_axis(d: &Design<'_>, axis: usize, lam: f64) -> Option<AxisGls> {
-    fit_axis_mu(d, axis, lam, None)
+    fit_axis_mu(d, axis, lam, 0.0)
 }
 
-/// [`fit_axis`] with the shared level's `mu` (None: `mu` 0 for a shared
-/// level, unused for per-run constants).
-pub(crate) fn fit_axis_mu(d: &Design<'_>, axis: usize, lam: f64, mu: Option<f64>) -> Option<AxisGls> {
-    let mu = if d.shared_level { Some(mu.unwrap_or(0.0)) } else { None };
+/// [`fit_axis`] with the shared level's `mu` (unused for per-run constants).
+pub(crate) fn fit_axis_mu(d: &Design<'_>, axis: usize, lam: f64, mu: f64) -> Option<AxisGls> {
+    let mu = d.shared_level.then_some(mu);
     let p = d.p();
     let mut xtx = DMatrix::zeros(p, p);
     let mut xty = vec![0.0; p];
@@ -338,7 +337,13 @@ const GOLDEN_STEPS: usize = 16;
 /// REML estimate of `lam = q / s^2` for one axis: the coarse grid, then a
 /// golden-section search (in log10) around its best point.
 pub(crate) fn reml_lambda(d: &Design<'_>, axis: usize) -> f64 {
-    minimise_log10(LAM_LOG10, |v| fit_axis(d, axis, v).map(|g| g.reml()).unwrap_or(f64::INFINITY))
+    minimise_log10(LAM_LOG10, |v| reml_at(d, axis, v, 0.0))
+}
+
+/// `-2 log` restricted likelihood of axis `axis` at `(lam, mu)`; infinite
+/// when the design is singular there.
+pub(crate) fn reml_at(d: &Design<'_>, axis: usize, lam: f64, mu: f64) -> f64 {
+    fit_axis_mu(d, axis, lam, mu).map(|g| g.reml()).unwrap_or(f64::INFINITY)
 }
 
 /// `mu` grid (relative to `s^2`): 0 and 10^-3 .. 10^8, one point a decade.
@@ -350,20 +355,19 @@ const SHARED_ROUNDS: usize = 2;
 /// alternating 1-D searches from the per-run constants' `lam0`.
 pub(crate) fn reml_shared(d: &Design<'_>, axis: usize, lam0: f64) -> (f64, f64) {
     let (mut lam, mut mu) = (lam0, 0.0);
-    let reml = |lam: f64, mu: f64| fit_axis_mu(d, axis, lam, Some(mu)).map(|g| g.reml()).unwrap_or(f64::INFINITY);
     for _ in 0..SHARED_ROUNDS {
-        mu = minimise_log10(MU_LOG10, |m| reml(lam, m));
-        lam = minimise_log10(LAM_LOG10, |l| reml(l, mu));
+        mu = minimise_log10(MU_LOG10, |m| reml_at(d, axis, lam, m));
+        lam = minimise_log10(LAM_LOG10, |l| reml_at(d, axis, l, mu));
     }
     (lam, mu)
 }
 
 /// The largest `mu` whose restricted likelihood (at `lam`) is within
-/// `chi2` (on the `-2 log` scale) of the best: the upper end of `mu`'s
-/// profile interval, found by bisection in log10 up to the grid's end.
-pub(crate) fn mu_upper(d: &Design<'_>, axis: usize, lam: f64, mu: f64, chi2: f64) -> f64 {
-    let reml = |m: f64| fit_axis_mu(d, axis, lam, Some(m)).map(|g| g.reml()).unwrap_or(f64::INFINITY);
-    let best = reml(mu);
+/// `chi2` (on the `-2 log` scale) of `best`, the REML at the estimate `mu`:
+/// the upper end of `mu`'s profile interval, found by bisection in log10 up
+/// to the grid's end.
+pub(crate) fn mu_upper(d: &Design<'_>, axis: usize, lam: f64, mu: f64, best: f64, chi2: f64) -> f64 {
+    let reml = |m: f64| reml_at(d, axis, lam, m);
     let top = 10f64.powf(MU_LOG10.1);
     if reml(top) - best <= chi2 {
         return top;

@@ -108,7 +108,7 @@ pub use chamber::ChamberRun;
 pub use read::{read_run, read_run_from, Bin, Run};
 
 use crate::config::Config;
-use gls::{fit_axis, fit_axis_mu, mu_upper, reml_lambda, reml_shared, Design, Rows};
+use gls::{fit_axis, fit_axis_mu, mu_upper, reml_at, reml_lambda, reml_shared, Design, Rows};
 use std::path::{Path, PathBuf};
 
 /// Bin length, seconds.
@@ -531,13 +531,11 @@ pub fn calibrate_runs(runs: &[Run], order: u8, t0: f64) -> Result<Calibration, C
         // the curve: one level for all runs, each run's turn-on offset random
         // (step 7), unless the runs' levels say they differ
         let (lam, mu) = reml_shared(&ds, i, lams[i]);
-        let reml_at = |m: f64| fit_axis_mu(&ds, i, lam, Some(m)).map(|g| g.reml()).unwrap_or(f64::INFINITY);
-        let shared = u_n > 1 && reml_at(0.0) - reml_at(mu) <= SPREAD_TEST_CHI2;
-        let axis = if shared {
-            let g = fit_axis_mu(&ds, i, lam, Some(mu)).ok_or_else(not_determined)?;
+        let shared_fit = fit_axis_mu(&ds, i, lam, mu).filter(|g| u_n > 1 && reml_at(&ds, i, lam, 0.0) - g.reml() <= SPREAD_TEST_CHI2);
+        let axis = if let Some(g) = shared_fit {
             // the interval at the largest spread the runs allow, if wider
-            let up = mu_upper(&ds, i, lam, mu, MU_UPPER_CHI2);
-            let wide = fit_axis_mu(&ds, i, lam, Some(up)).ok_or_else(not_determined)?;
+            let up = mu_upper(&ds, i, lam, mu, g.reml(), MU_UPPER_CHI2);
+            let wide = fit_axis_mu(&ds, i, lam, up).ok_or_else(not_determined)?;
             let s2 = g.s2();
             let cols: Vec<usize> = (1..=order_u).map(|k| ds.poly_col(k)).collect();
             let mut a = axis_fit(&g, Some(&wide), &cols, scale);
