@@ -446,8 +446,7 @@ impl Estimator {
                     let att = (5.0 * D2R + 30.0 * D2R * gap).min(90.0 * D2R);
                     m.resync(att * att, 4.0 + (3.0 * gap).powi(2));
                 }
-                let (mode, ffl) = m.step(&inp);
-                let ratio = m.accel_ratio();
+                let (mode, ffl, ratio) = m.step(&inp);
                 let b = m.bias;
                 let sp = m.rest_point.take();
                 (mode, ffl, ratio, m.euler(), [b[0] * R2D, b[1] * R2D, b[2] * R2D], sp, m.started())

@@ -221,8 +221,6 @@ pub struct MekfCounters {
 pub struct Mekf {
     p: MekfParams,
     started: bool,
-    /// `|a| / g0` of the last sample (the switching policy's ratio).
-    accel_ratio: f64,
     q: Quat,
     c: Mat3,
     /// Bias, rad/s.
@@ -306,7 +304,6 @@ impl Mekf {
         Mekf {
             p,
             started: false,
-            accel_ratio: 1.0,
             q: [1.0, 0.0, 0.0, 0.0],
             c: quat::to_matrix(&[1.0, 0.0, 0.0, 0.0]),
             bias: [0.0; 3],
@@ -383,11 +380,6 @@ impl Mekf {
         self.mode = 2;
         self.tick_flags = 0;
         self.started = true;
-    }
-
-    /// `|a| / g0` of the last sample, as the switching policy read it.
-    pub fn accel_ratio(&self) -> f64 {
-        self.accel_ratio
     }
 
     pub fn started(&self) -> bool {
@@ -470,8 +462,9 @@ impl Mekf {
         self.bias_sigma_cache = self.bias_sigma();
     }
 
-    /// One sample; returns (mode, flags).
-    pub fn step(&mut self, s: &StepIn) -> (u8, u16) {
+    /// One sample; returns (mode, flags, `|a| / g0` as the switching policy
+    /// read it).
+    pub fn step(&mut self, s: &StepIn) -> (u8, u16, f64) {
         let dt = s.dt;
         self.g0 = s.g0;
         let gyro = [s.gyro[0] * D2R, s.gyro[1] * D2R, s.gyro[2] * D2R];
@@ -556,7 +549,6 @@ impl Mekf {
         }
         // Policy: the paper's switching, the turn rate, the dwell.
         let dec = self.switching.classify(&s.accel, s.g0);
-        self.accel_ratio = dec.ratio;
         // Before the first standstill any steady rate may be the bias: the
         // first rest after power-on initialises it, whatever its size.
         let bs = if self.bias_known { self.bias_sigma_cache } else { [f64::INFINITY; 3] };
@@ -621,7 +613,7 @@ impl Mekf {
             self.started = false;
             fl |= flags::RESYNC;
         }
-        (self.mode, fl | self.tick_flags)
+        (self.mode, fl | self.tick_flags, dec.ratio)
     }
 
     /// Propagate the covariance over the accumulated interval and run the
