@@ -2,6 +2,7 @@
 
 use super::RunData;
 use crate::estimator::Estimate;
+use crate::reference::plot::mode_spans;
 use plotters::prelude::*;
 
 type R = Result<(), Box<dyn std::error::Error>>;
@@ -24,22 +25,8 @@ pub fn attitude_error(svg: &mut String, errs: &[(f64, [f64; 3])], est: &[Estimat
         .build_cartesian_2d(0.0..t1, -m..m)?;
     ch.configure_mesh().x_desc("t, s").y_desc("deg").draw()?;
     // mode shading, one rectangle per run of equal mode
-    let mut k = 0;
-    while k < est.len() {
-        let mode = est[k].mode;
-        let mut j = k;
-        while j + 1 < est.len() && est[j + 1].mode == mode {
-            j += 1;
-        }
-        let col = match mode {
-            0 => Some(RGBColor(200, 240, 200)),
-            1 => Some(RGBColor(250, 240, 190)),
-            _ => None,
-        };
-        if let Some(col) = col {
-            ch.draw_series(std::iter::once(Rectangle::new([(est[k].t, -m), (est[j].t.max(est[k].t + 0.005), m)], col.filled())))?;
-        }
-        k = j + 1;
+    for (a, b, col) in mode_spans(est.len(), |k| est[k].mode, |k| est[k].t) {
+        ch.draw_series(std::iter::once(Rectangle::new([(a, -m), (b, m)], col.filled())))?;
     }
     let step = every(errs.len(), 4000);
     for (i, (name, col)) in [("roll", RED), ("pitch", BLUE), ("yaw", BLACK)].iter().enumerate() {

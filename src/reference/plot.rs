@@ -9,6 +9,31 @@ type R<T> = Result<T, Box<dyn std::error::Error>>;
 /// A named, coloured error series.
 type Series = (&'static str, RGBColor, fn(&ErrRow) -> f64);
 
+/// The mode shading of a plot over `n` samples (`mode(k)`, `t(k)`): per
+/// run of equal mode, its time span and colour (green fusion, yellow blend;
+/// gyro only is not shaded).
+pub fn mode_spans(n: usize, mode: impl Fn(usize) -> u8, t: impl Fn(usize) -> f64) -> Vec<(f64, f64, RGBColor)> {
+    let mut out = Vec::new();
+    let mut k = 0;
+    while k < n {
+        let m = mode(k);
+        let mut j = k;
+        while j + 1 < n && mode(j + 1) == m {
+            j += 1;
+        }
+        let col = match m {
+            0 => Some(RGBColor(200, 240, 200)),
+            1 => Some(RGBColor(250, 240, 190)),
+            _ => None,
+        };
+        if let Some(col) = col {
+            out.push((t(k), t(j).max(t(k) + 0.005), col));
+        }
+        k = j + 1;
+    }
+    out
+}
+
 /// One panel: a name, the error rows, the modes (ours).
 pub struct Panel<'a> {
     pub name: &'a str,
@@ -53,23 +78,8 @@ where
         .build_cartesian_2d(0.0..t1, -m..m)?;
     ch.configure_mesh().x_desc("t, s").y_desc("deg").draw()?;
     if let Some(modes) = p.modes {
-        let mut k = 0;
-        while k < modes.len() {
-            let mode = modes[k];
-            let mut j = k;
-            while j + 1 < modes.len() && modes[j + 1] == mode {
-                j += 1;
-            }
-            let col = match mode {
-                0 => Some(RGBColor(200, 240, 200)),
-                1 => Some(RGBColor(250, 240, 190)),
-                _ => None,
-            };
-            if let Some(col) = col {
-                let (a, b) = (rows[k].t, rows[j].t.max(rows[k].t + 0.005));
-                ch.draw_series(std::iter::once(Rectangle::new([(a, -m), (b, m)], col.filled())))?;
-            }
-            k = j + 1;
+        for (a, b, col) in mode_spans(modes.len(), |k| modes[k], |k| rows[k].t) {
+            ch.draw_series(std::iter::once(Rectangle::new([(a, -m), (b, m)], col.filled())))?;
         }
     }
     if skip > 0.0 {
