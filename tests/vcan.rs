@@ -73,6 +73,19 @@ const WAIT_READY: &str = r#"
 i=0; until grep -q "bus open" daemon.err 2>/dev/null; do sleep 0.1; i=$((i+1)); [ $i -gt 300 ] && { echo "daemon never opened the bus"; cat daemon.err; exit 1; }; done
 "#;
 
+/// A shell function: `capture OUT IN` records the daemon's output frames
+/// (0x110..0x113) to OUT while IN is played onto the bus.
+const CAPTURE: &str = r#"
+capture() {
+  candump -r 8388608 -L vcan0,110:7FC > "$1" &
+  C=$!
+  sleep 0.5
+  canplayer -I "$2" vcan0=vcan0
+  sleep 0.5
+  kill $C
+}
+"#;
+
 const STOP: &str = r#"
 kill -TERM $D
 i=0; while kill -0 $D 2>/dev/null; do sleep 0.1; i=$((i+1)); [ $i -gt 10 ] && { echo "daemon did not stop within 1 s of SIGTERM"; exit 1; }; done
@@ -164,15 +177,11 @@ fn live_equals_replay_and_faults_are_survived() {
     let script = format!(
         r#"
 set -u
+{CAPTURE}
 gyrocomp run --config live.toml 2> daemon.err &
 D=$!
 {WAIT_READY}
-candump -r 8388608 -L vcan0,110:7FC > live1.log &
-C=$!
-sleep 0.5
-canplayer -I clean.log vcan0=vcan0
-sleep 0.5
-kill $C
+capture live1.log clean.log
 candump -r 8388608 -L vcan0,110:7FC > live2.log &
 C=$!
 sleep 0.5
@@ -188,12 +197,7 @@ ip link set vcan0 down
 sleep 1
 ip link set vcan0 up
 sleep 2.5
-candump -r 8388608 -L vcan0,110:7FC > live3.log &
-C=$!
-sleep 0.5
-canplayer -I after.log vcan0=vcan0
-sleep 0.5
-kill $C
+capture live3.log after.log
 # the interface disappears and is created again: the old socket is dead, the
 # daemon must reopen (with backoff) on the new one
 ip link del vcan0
@@ -201,12 +205,7 @@ sleep 1
 ip link add dev vcan0 type vcan
 ip link set vcan0 up
 sleep 3
-candump -r 8388608 -L vcan0,110:7FC > live4.log &
-C=$!
-sleep 0.5
-canplayer -I recreated.log vcan0=vcan0
-sleep 0.5
-kill $C
+capture live4.log recreated.log
 {STOP}
 cat daemon.err
 "#
@@ -326,6 +325,7 @@ fn live_equals_replay_with_the_cars_wheel_speeds_configured_by_a_reload() {
     let script = format!(
         r#"
 set -u
+{CAPTURE}
 cp first.toml active.toml
 gyrocomp run --config active.toml 2> daemon.err &
 D=$!
@@ -334,12 +334,7 @@ cp live.toml active.toml
 kill -HUP $D
 i=0; until grep -q "config reloaded" daemon.err; do sleep 0.1; i=$((i+1)); [ $i -gt 100 ] && {{ echo "no reload"; cat daemon.err; exit 1; }}; done
 sleep 1
-candump -r 8388608 -L vcan0,110:7FC > live.log &
-C=$!
-sleep 0.5
-canplayer -I imu.log vcan0=vcan0
-sleep 0.5
-kill $C
+capture live.log imu.log
 {STOP}
 cat daemon.err
 "#
