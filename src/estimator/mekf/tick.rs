@@ -1,0 +1,225 @@
+//! One tick of the default filter: the covariance propagated over the
+//! samples accumulated since the last, then the measurement updates the
+//! policy allows (standstill, cruise, vehicle constraints, wheel speed,
+//! heading), the restart checks and the tick's flags.
+
+use super::*;
+
+impl Mekf {
+    /// Propagate the covariance over the accumulated interval and run the
+    /// measurement updates the policy allows.
+    pub(super) fn tick(&mut self, temp: f64) {
+        let a = std::mem::take(&mut self.acc);
+        self.acc = Accum { quasi: true, rest: true, quiet: true, ..Accum::default() };
+        let t = a.t;
+        if t <= 0.0 || a.n == 0 {
+            return;
+        }
+        self.propagate(&a);
+        let n = a.n as f64;
+        let mut fl = 0u16;
+        let mut o = Outcome::default();
+        self.dx = [0.0; N];
+        let omega = [a.omega[0] / n, a.omega[1] / n, a.omega[2] / n];
+        // The wheels say standing (0) or moving; a quiet IMU with standing
+        // wheels is a standstill without waiting for the detector's time.
+        let wheel = if self.p.speed_aided { self.speed } else { None };
+        let wheel_standing = wheel.is_some_and(|v| v.abs() < WHEEL_STANDING);
+        let wheel_moving = wheel.is_some_and(|v| v.abs() > WHEEL_MOVING);
+        let still = (a.rest || (wheel_standing && a.quiet)) && !a.suspect && !wheel_moving;
+        // A steady signal at a speed the filter is sure of is a smooth
+        // cruise, not a standstill: the gyro still reads the bias on a
+        // straight and gravity is still gravity, but the velocity is not zero.
+        // The speed is taken when the signal becomes steady: a velocity that
+        // grows while the unit is still is the tilt's error, not a cruise.
+        if !still {
+            if self.still_speed.is_some() {
+                self.after_gap = false;
+            }
+            self.still_speed = None;
+        } else if self.still_speed.is_none() {
+            let sv = (self.cov[VE][VE] + self.cov[VE + 1][VE + 1] + self.cov[VE + 2][VE + 2]).max(0.0).sqrt();
+            self.still_speed = Some((norm(&self.v), sv));
+        }
+        // After a gap the velocity the filter holds is a guess (the unit may
+        // have been re-mounted or stopped meanwhile): the first still period
+        // is a standstill.
+        // Before the bias is known (powered on while driving, no saved
+        // state) the speed is the filter's guess, not evidence: a still
+        // period then is a standstill, as after a gap.
+        let cruising = !wheel_standing
+            && !self.after_gap
+            && (self.bias_known || wheel.is_some())
+            && self.still_speed.is_some_and(|(v, sv)| v > CRUISE_SPEED.max(3.0 * sv));
+        let at_rest = still && !cruising;
+        // The paper's policy: what takes the accelerometer for gravity (the
+        // low-passed tilt and the bounded velocity of a unit that is not a
+        // vehicle) teaches the bias only when the data say quasi-static, or
+        // while no standstill or saved bias has made it known (a turn-on bias
+        // of several deg/s must not wait for a stop that may never come).
+        // What holds under any acceleration (standstill, the vehicle
+        // constraint, the wheel speed, the magnetic heading) always does.
+        let learn_gravity = (a.quasi || !self.bias_known) && !a.suspect;
+        let learn = !a.suspect;
+        if still {
+            if at_rest {
+                fl |= flags::STANDSTILL;
+                self.counters.rest_s += t;
+            }
+            self.still_updates(&a, at_rest, &mut o);
+            if o.refused {
+                self.refused_still += t;
+            } else {
+                self.refused_still = 0.0;
+            }
+            if at_rest && self.refused_still >= self.p.relevel_s {
+                self.inject();
+                self.relevel();
+                fl |= flags::RELEVEL;
+                o.fused = true;
+                o.learned = true;
+            }
+            self.nhc_refused = 0.0;
+        } else {
+            self.refused_still = 0.0;
+            if !a.suspect {
+                let learn_v = if self.vehicle { learn } else { learn_gravity };
+                let (f, g) = self.velocity_updates(&omega, learn_v, self.p.gate);
+                o.fused |= f;
+                o.learned |= f && learn_v;
+                let k = (t / LOST_TAU_S).min(1.0);
+                self.refused_share += ((if g && !f { 1.0 } else { 0.0 }) - self.refused_share) * k;
+                if g {
+                    fl |= flags::GATED;
+                    self.counters.gated_s += t;
+                    self.nhc_refused += t;
+                    self.counters.refused_max_s = self.counters.refused_max_s.max(self.nhc_refused);
+                } else {
+                    self.nhc_refused = 0.0;
+                }
+            }
+        }
+        if let Some(vw) = wheel {
+            fl |= flags::SPEED_AIDED;
+            self.counters.speed_used_s += t;
+            // each frame once; at a standstill the zero-velocity update says it
+            if self.speed_new && !at_rest && !a.suspect && self.speed_update(vw, &omega, learn, self.p.gate) == Upd::Fused {
+                o.fused = true;
+            }
+        }
+        self.speed_new = false;
+        if self.mag_on == Some(true) && !a.suspect {
+            let m = [a.magn[0] / n, a.magn[1] / n, a.magn[2] / n];
+            match self.heading_update(&m, at_rest, learn, self.p.gate) {
+                Some(true) => o.fused = true,
+                Some(false) => {}
+                None => {
+                    fl |= flags::MAG_DISTURBED;
+                    self.counters.mag_disturbed_s += t;
+                }
+            }
+        }
+        if self.nhc_refused >= self.p.relevel_s {
+            // The velocity constraints have been refused for long: the
+            // velocity, not the vehicle, is wrong. Widen it so they take hold
+            // again (the attitude is left alone: it is what they correct).
+            for i in 0..3 {
+                self.cov[VE + i][VE + i] += 1.0;
+            }
+            self.nhc_refused = 0.0;
+            self.counters.reacquired += 1;
+        }
+        self.inject();
+        let (pb, ps) = self.prior;
+        // Before a standstill (or a saved state) has shown the bias, a bias
+        // beyond the part's range is the filter's divergence, not the part;
+        // a bias read at rest is evidence, whatever its size.
+        let lost = self.refused_share > LOST_SHARE;
+        let unbelievable = !self.bias_known
+            && !at_rest
+            && (0..3).any(|i| (self.bias[i] - pb[i]).abs() > BIAS_LIMIT_SIGMAS * ps[i].max(self.p.init_bias_sigma));
+        if lost || unbelievable {
+            self.restart_from_prior();
+            fl |= flags::RELEVEL;
+            self.tick_flags = fl;
+            return;
+        }
+        // known once a standstill has *read* it (a refused zero-rate update
+        // says the filter's bias is wrong, not known)
+        if at_rest && o.bias_read {
+            self.bias_known = true;
+        }
+        if at_rest {
+            self.rest_point = Some((temp, self.bias_deg(), t));
+        } else {
+            self.rest_point = None;
+        }
+        if o.learned && o.fused {
+            self.last_learned = Some((temp, self.bias_deg()));
+        }
+        self.mode = match (o.fused, o.learned) {
+            (true, true) => 0,
+            (true, false) => 1,
+            _ => 2,
+        };
+        if !self.bias_known {
+            fl |= flags::LEARNING;
+        }
+        if o.refused {
+            fl |= flags::GATED;
+        }
+        self.tick_flags = fl;
+    }
+
+    /// The updates of a still unit: the gyro reads the bias (zero-rate
+    /// update), the specific force is gravity, and at a standstill (not a
+    /// smooth cruise) the velocity is zero. Noise from the rest detector.
+    fn still_updates(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome) {
+        let n = a.n as f64;
+        let gate = self.p.gate;
+        let all = Gain { tilt: true, bias: true };
+        let note = |u: Upd, o: &mut Outcome| match u {
+            Upd::Fused => {
+                o.fused = true;
+                o.learned = true;
+            }
+            Upd::Gated => o.refused = true,
+            Upd::Skipped => {}
+        };
+        if at_rest {
+            for i in 0..3 {
+                let mut h = [0.0; N];
+                h[VE + i] = 1.0;
+                let u = self.update(&h, -self.v[i], self.p.zupt_var, all, gate);
+                note(u, o);
+            }
+        }
+        let gvar = self.last_rest.map_or(self.p.zru_floor, |r| r.gyro_var / 3.0);
+        let r_zru = (gvar / n).max(self.p.zru_floor);
+        let mut read = 0;
+        for i in 0..3 {
+            let mut h = [0.0; N];
+            h[BI + i] = 1.0;
+            let u = self.update(&h, a.gyro[i] / n - self.bias[i], r_zru, all, gate);
+            read += (u == Upd::Fused) as u32;
+            note(u, o);
+        }
+        o.bias_read = read == 3;
+        let f = [a.accel[0] / n, a.accel[1] / n, a.accel[2] / n];
+        let fnm = norm(&f);
+        if fnm > 0.5 {
+            let u = rotate(&self.c, &[f[0] / fnm, f[1] / fnm, f[2] / fnm]);
+            let avar = self.last_rest.map_or(1e-4, |r| r.accel_var / 3.0);
+            let r_tilt = (avar / n).max(self.p.tilt_floor);
+            // u = -e_z + (dθ_y, -dθ_x, 0)
+            let mut h = [0.0; N];
+            h[TH + 1] = 1.0;
+            let up = self.update(&h, u[0], r_tilt, all, gate);
+            note(up, o);
+            let mut h = [0.0; N];
+            h[TH] = -1.0;
+            let up = self.update(&h, u[1], r_tilt, all, gate);
+            note(up, o);
+        }
+    }
+}
