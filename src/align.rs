@@ -17,7 +17,7 @@
 
 use crate::adis::{Assembler, Sample};
 use crate::config::Config;
-use crate::estimator::quat;
+use crate::estimator::quat::{self, norm};
 use crate::estimator::rest::{RestDetector, RestParams};
 use std::path::PathBuf;
 
@@ -205,8 +205,4 @@ pub fn run(a: &AlignArgs) -> Result<(), String> {
     let al = align(&samples, &cfg)?;
     print!("{}", al.render());
     Ok(())
-}
-
-fn norm(v: &[f64; 3]) -> f64 {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }

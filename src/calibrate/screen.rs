@@ -71,7 +71,7 @@ pub(crate) fn static_check(bins: &[Bin], full: &[bool], rep: &mut RunReport) -> 
     }
     // tilt: angle of each bin's specific force to the run's median direction
     let unit = |a: [f64; 3]| {
-        let m = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+        let m = crate::estimator::quat::norm(&a);
         if m > 0.0 {
             a.map(|v| v / m)
         } else {

@@ -404,7 +404,7 @@ impl Estimator {
 
         // g0: mean |a| over the first g0_window seconds.
         if t < self.g0_window || self.g0_n == 0 {
-            let amag = (accel[0] * accel[0] + accel[1] * accel[1] + accel[2] * accel[2]).sqrt();
+            let amag = quat::norm(&accel);
             if amag > 0.0 {
                 self.g0_sum += amag;
                 self.g0_n += 1;

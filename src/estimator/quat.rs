@@ -127,6 +127,12 @@ pub fn atan2(y: f64, x: f64) -> f64 {
     }
 }
 
+/// `|v|`.
+#[inline]
+pub fn norm(v: &[f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
 /// `C v`.
 #[inline]
 pub fn rotate(c: &Mat3, v: &[f64; 3]) -> [f64; 3] {

@@ -163,7 +163,7 @@ impl RestDetector {
         }
         self.gyro_var += (dg - self.gyro_var) * a;
         self.accel_var += (da - self.accel_var) * a;
-        let amag = (self.accel_lp[0] * self.accel_lp[0] + self.accel_lp[1] * self.accel_lp[1] + self.accel_lp[2] * self.accel_lp[2]).sqrt();
+        let amag = super::quat::norm(&self.accel_lp);
         // per axis: a bias known on one axis and not on another is common
         let turning = (0..3).any(|i| (self.gyro_lp[i] - bias[i]).abs() > self.p.rate + 3.0 * bias_sigma[i]);
         let gd = self.p.gyro_dev;

@@ -98,7 +98,7 @@ impl Switching {
 
     /// Add one specific-force sample (g) and decide.
     pub fn classify(&mut self, a: &[f64; 3], g0: f64) -> Decision {
-        let mag = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+        let mag = super::quat::norm(a);
         let jerk = self.push(a, mag);
         let ratio = mag / g0;
         let (band, weight) = self.band(ratio);

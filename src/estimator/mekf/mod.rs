@@ -43,7 +43,7 @@ mod kalman;
 mod measure;
 mod tick;
 
-use super::quat::{self, cross, rotate, rotate_t, Mat3, Quat};
+use super::quat::{self, cross, norm, rotate, rotate_t, Mat3, Quat};
 use super::rest::{RestDetector, RestParams, RestState};
 use super::{flags, StepIn};
 use crate::estimator::ekf::wrap_pi;
@@ -661,11 +661,6 @@ impl Mekf {
     fn bias_deg(&self) -> [f64; 3] {
         [self.bias[0] / D2R, self.bias[1] / D2R, self.bias[2] / D2R]
     }
-}
-
-#[inline]
-fn norm(v: &[f64; 3]) -> f64 {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
 #[cfg(test)]
