@@ -277,8 +277,6 @@ pub struct Mekf {
     /// The vehicle model is in use; the low-passed squared x/y body rate.
     vehicle: bool,
     xy_rate2: f64,
-    /// g0 of the facade (|f| at power-on, g).
-    g0: f64,
     /// The bias sigma as of the last update (the covariance changes only there).
     bias_sigma_cache: [f64; 3],
     /// Low-pass gains for the step length `alpha_dt`.
@@ -333,7 +331,6 @@ impl Mekf {
             bias_known: false,
             vehicle: true,
             xy_rate2: 0.0,
-            g0: 1.0,
             g_ref: None,
             g0_steady: true,
             g0_decided: false,
@@ -467,7 +464,6 @@ impl Mekf {
     /// read it).
     pub fn step(&mut self, s: &StepIn) -> (u8, u16, f64) {
         let dt = s.dt;
-        self.g0 = s.g0;
         let gyro = [s.gyro[0] * D2R, s.gyro[1] * D2R, s.gyro[2] * D2R];
         for i in 0..3 {
             self.bias[i] += s.dbias[i] * D2R;
