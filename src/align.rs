@@ -5,7 +5,10 @@
 //!   standstills is gravity alone, seen in the sensor frame. Every standstill
 //!   (the estimator's own detector, `[rest]`) gives a direction; their mean
 //!   is taken, because a single stop may be on a slope (each stop's tilt is
-//!   printed: their spread is the road's).
+//!   printed: their spread is the road's). The detector's gravity is the
+//!   estimator's (`GravityRef`): g0 only if the recording starts still
+//!   (one that starts while driving holds the car's acceleration in g0),
+//!   then |f| at the stops.
 //! - Yaw of the mounting: a vehicle accelerates and brakes along its own x
 //!   axis. In the levelled sensor frame, the horizontal specific force while
 //!   driving straight (|yaw rate| < 2 deg/s) and accelerating or braking
@@ -18,7 +21,7 @@
 use crate::adis::{Assembler, Sample};
 use crate::config::Config;
 use crate::estimator::quat::{self, norm};
-use crate::estimator::rest::{RestDetector, RestParams};
+use crate::estimator::rest::{GravityRef, RestDetector, RestParams};
 use std::path::PathBuf;
 
 const D2R: f64 = std::f64::consts::PI / 180.0;
@@ -76,9 +79,13 @@ pub fn align(samples: &[Sample], cfg: &Config) -> Result<Alignment, String> {
     let p = cfg.profile();
     let mut det = RestDetector::new(RestParams::from_config(&cfg.rest));
     let dt = 1.0 / p.rate_hz;
-    // g0 over the first second, as the estimator does
-    let n0 = (p.rate_hz as usize).clamp(1, samples.len().max(1));
-    let g0 = samples.iter().take(n0).map(|s| norm(&s.accel)).sum::<f64>() / n0 as f64;
+    // gravity's reference for the detector as the estimator keeps it: g0
+    // over `g0_window_s` only if the unit was steady then (a recording that
+    // starts while driving holds the car's acceleration in g0, and every
+    // stop would fail the band), then |f| at the rests
+    let window = cfg.estimator.g0_window_s;
+    let mut g_ref = GravityRef::default();
+    let (mut g0_sum, mut g0_n) = (0.0, 0u64);
     // 1. standstills and their mean specific force
     let mut rests: Vec<(usize, usize, [f64; 3])> = Vec::new();
     let mut cur: Option<(usize, [f64; 3], usize)> = None;
@@ -86,8 +93,15 @@ pub fn align(samples: &[Sample], cfg: &Config) -> Result<Alignment, String> {
     let mut bias_sum = [0.0; 3];
     let mut bias_n = 0usize;
     for (k, s) in samples.iter().enumerate() {
+        let t = k as f64 * dt;
+        let amag = norm(&s.accel);
+        if (t < window || g0_n == 0) && amag > 0.0 {
+            g0_sum += amag;
+            g0_n += 1;
+        }
         let g = s.gyro.map(|v| v * D2R);
-        let st = det.push(&g, &s.accel, dt, Some(g0), &[0.0; 3], [f64::INFINITY; 3]);
+        let st = det.push(&g, &s.accel, dt, g_ref.get(), &[0.0; 3], [f64::INFINITY; 3]);
+        g_ref.observe(Some(&st), t, g0_sum / g0_n.max(1) as f64, window, dt);
         if st.rest {
             for i in 0..3 {
                 bias_sum[i] += s.gyro[i];
@@ -205,4 +219,73 @@ pub fn run(a: &AlignArgs) -> Result<(), String> {
     let al = align(&samples, &cfg)?;
     print!("{}", al.render());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A level car whose sensor is mounted at `mount` (deg): `phases` of
+    /// (seconds, forward acceleration g, vibration on); 200 Hz.
+    fn drive(mount: [f64; 3], phases: &[(f64, f64, bool)]) -> Vec<Sample> {
+        let c = quat::matrix_from_euler(mount[0] * D2R, mount[1] * D2R, mount[2] * D2R);
+        let bias = [1.0, -0.5, 0.3];
+        let mut out = Vec::new();
+        let mut k = 0u32;
+        for &(secs, a, vib) in phases {
+            for _ in 0..(secs * 200.0) as u32 {
+                let t = k as f64 / 200.0;
+                let w = |amp: f64, hz: f64| amp * (2.0 * std::f64::consts::PI * hz * t).sin();
+                // road vibration while driving, engine idle at the stops
+                let (fv, gv) =
+                    if vib { ([w(0.08, 29.0), w(0.05, 23.0), w(0.06, 31.0)], w(1.5, 17.0)) } else { ([w(0.01, 29.0), 0.0, 0.0], 0.0) };
+                let f = quat::rotate_t(&c, &[a + fv[0], fv[1], -1.0 + fv[2]]);
+                let g = quat::rotate_t(&c, &[gv, 0.0, 0.0]);
+                out.push(Sample {
+                    cnt: k as u16,
+                    t_us: 0,
+                    steps: u32::from(k > 0),
+                    gyro: [g[0] + bias[0], g[1] + bias[1], g[2] + bias[2]],
+                    accel: f,
+                    magn: [0.0; 3],
+                    temp: 25.0,
+                    diag: 0,
+                });
+                k += 1;
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn a_recording_that_starts_while_driving_still_finds_its_stops() {
+        // The first second holds a 0.15 g pull-away with road vibration: its
+        // mean |f| (1.01 g) is not gravity. Taken as gravity, the +-0.5 %
+        // band hid every stop ("no standstill found").
+        let cfg = Config::parse("[input]\nprofile = \"adis16448\"\nrate_hz = 200.0", "test").unwrap();
+        let mount = [2.0, -3.0, 30.0];
+        let s = drive(
+            mount,
+            &[(4.0, 0.15, true), (8.0, 0.0, false), (4.0, 0.15, true), (6.0, 0.0, false), (3.0, -0.15, true), (6.0, 0.0, false)],
+        );
+        let first: f64 = s[..200].iter().map(|s| norm(&s.accel)).sum::<f64>() / 200.0;
+        assert!(first > 1.008, "the test needs a first second off gravity: {first}");
+        let a = align(&s, &cfg).unwrap();
+        assert!(a.rests.len() >= 3, "{a:?}");
+        assert!((a.rotation[0] - mount[0]).abs() < 0.1 && (a.rotation[1] - mount[1]).abs() < 0.1, "{a:?}");
+        assert!(crate::estimator::ekf::wrap_pi((a.rotation[2] - mount[2]) * D2R).abs() / D2R < 1.0, "{a:?}");
+    }
+
+    #[test]
+    fn a_recording_that_starts_at_rest_keeps_g0_as_gravity() {
+        // An accelerometer reading 1.5 % high: a still start makes that the
+        // reference, so the stops pass the +-0.5 % band.
+        let cfg = Config::parse("[input]\nprofile = \"adis16448\"\nrate_hz = 200.0", "test").unwrap();
+        let mut s = drive([0.0, 0.0, 0.0], &[(6.0, 0.0, false), (4.0, 0.15, true), (6.0, 0.0, false)]);
+        for x in s.iter_mut() {
+            x.accel = x.accel.map(|v| v * 1.015);
+        }
+        let a = align(&s, &cfg).unwrap();
+        assert_eq!(a.rests.len(), 2, "{a:?}");
+    }
 }

@@ -57,12 +57,19 @@ fn angle_diff(a: f64, b: f64) -> f64 {
 #[test]
 fn align_recovers_a_rotated_mounting_and_the_estimator_holds_with_it() {
     let d = tempfile::tempdir().unwrap();
-    for (seed, m) in [(3u64, [4.0, -3.0, 35.0]), (5, [-2.0, 5.0, -120.0]), (6, [180.0, 0.0, 90.0])] {
+    // the last run starts while driving (a 0.1-0.2 g pull-away with road
+    // vibration in the first second): its g0 is not gravity, and taken as
+    // gravity it made steady accelerations pass for stops (proposed roll
+    // -0.24, pitch 4.23 for a mounting of 3, 2)
+    for (seed, m, moving) in
+        [(3u64, [4.0, -3.0, 35.0], false), (5, [-2.0, 5.0, -120.0], false), (6, [180.0, 0.0, 90.0], false), (7, [3.0, 2.0, -60.0], true)]
+    {
         let dir = d.path().join(format!("run{seed}"));
         let o = Command::new(bin())
             .args(["simulate", "--scenario", "urban", "--seed", &seed.to_string(), "--out"])
             .arg(&dir)
             .arg(format!("--mounting={},{},{}", m[0], m[1], m[2]))
+            .args(if moving { &["--power-on-moving"][..] } else { &[][..] })
             .output()
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -88,7 +95,9 @@ fn align_recovers_a_rotated_mounting_and_the_estimator_holds_with_it() {
         let mut cfg = Config::load(&dir.join("config.toml")).unwrap();
         cfg.mounting.rotation = p;
         let (est, ms) = data.estimates(&cfg).unwrap();
-        let s = score("aligned", &data, &est, ms, 10.0);
+        // powered on while driving, IMU only, the attitude is unknown until
+        // the first stops (docs/estimator.md, known limits): scored from 100 s
+        let s = score("aligned", &data, &est, ms, if moving { 100.0 } else { 10.0 });
         assert!(s.tilt_max() < off + 1.0, "seed {seed}: max roll/pitch {:?} with a mounting {off:.2} deg off", s.max_err);
     }
 }

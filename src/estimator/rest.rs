@@ -194,6 +194,60 @@ impl RestDetector {
     }
 }
 
+/// Seconds of rest whose mean |f| becomes gravity's reference.
+pub const G_REST_S: f64 = 3.0;
+
+/// Gravity's size as this unit measures it, the detector's `g_ref`: g0 (the
+/// mean |f| over the first `g0_window_s`) only if the signals were steady all
+/// through that window (powered on while driving, g0 holds the car's
+/// acceleration), then the mean |f| over the rests once they add up to
+/// `G_REST_S` (one short false rest must not set it); None until either.
+/// The estimator and `gyrocomp align` both keep one.
+#[derive(Clone, Debug)]
+pub struct GravityRef {
+    value: Option<f64>,
+    steady: bool,
+    decided: bool,
+    /// Sum of |f| dt and of dt over the rests.
+    rest_sum: f64,
+    rest_s: f64,
+}
+
+impl Default for GravityRef {
+    fn default() -> Self {
+        GravityRef { value: None, steady: true, decided: false, rest_sum: 0.0, rest_s: 0.0 }
+    }
+}
+
+impl GravityRef {
+    /// The reference for the next sample's detector push.
+    pub fn get(&self) -> Option<f64> {
+        self.value
+    }
+
+    /// After the detector's push (`None`: the sample was suspect and not
+    /// pushed): `t` seconds since the first sample, `g0` the mean |f| so far,
+    /// `window_s` g0's window, `dt` the step.
+    pub fn observe(&mut self, st: Option<&RestState>, t: f64, g0: f64, window_s: f64, dt: f64) {
+        if !self.decided {
+            self.steady &= st.is_some_and(|r| r.steady);
+            if t >= window_s {
+                self.decided = true;
+                if self.steady {
+                    self.value = Some(g0);
+                }
+            }
+        }
+        if let Some(r) = st.filter(|r| r.rest) {
+            self.rest_sum += super::quat::norm(&r.accel_lp) * dt;
+            self.rest_s += dt;
+            if self.rest_s >= G_REST_S {
+                self.value = Some(self.rest_sum / self.rest_s);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

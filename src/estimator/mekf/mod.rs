@@ -44,7 +44,7 @@ mod measure;
 mod tick;
 
 use super::quat::{self, cross, norm, rotate, rotate_t, Mat3, Quat};
-use super::rest::{RestDetector, RestParams, RestState};
+use super::rest::{GravityRef, RestDetector, RestParams, RestState};
 use super::{flags, StepIn};
 use crate::estimator::ekf::wrap_pi;
 use crate::estimator::switching::{Band, Switching};
@@ -66,8 +66,6 @@ const BIAS_LIMIT_SIGMAS: f64 = 4.0;
 /// Seconds of refused heading updates (field not disturbed) after which
 /// the heading is opened to what the field says.
 const HEADING_REACQUIRE_S: f64 = 5.0;
-/// Seconds of rest whose mean |f| becomes the rest detector's gravity.
-const G_REST_S: f64 = 3.0;
 /// Moving, the share of the time (low-passed over `LOST_TAU_S`) the gate
 /// refuses the velocity constraints beyond which the filter is lost (its
 /// attitude, not the vehicle, is wrong): it restarts from its prior.
@@ -234,14 +232,8 @@ pub struct Mekf {
     dx: [f64; N],
     acc: Accum,
     rest: RestDetector,
-    /// Gravity's size as this unit measures it, for the rest detector: g0
-    /// when the unit was steady while it was measured, then |f| at rests.
-    g_ref: Option<f64>,
-    /// The signals were steady all through the g0 window (so far).
-    g0_steady: bool,
-    g0_decided: bool,
-    /// Sum of |f| dt and of dt over the rests.
-    g_rest: (f64, f64),
+    /// Gravity's size as this unit measures it, for the rest detector.
+    g_ref: GravityRef,
     /// The bias prior at start (rad/s) and its 1-sigma.
     prior: ([f64; 3], [f64; 3]),
     /// Low-passed body-frame specific force and roll/pitch rate power, for
@@ -331,10 +323,7 @@ impl Mekf {
             bias_known: false,
             vehicle: true,
             xy_rate2: 0.0,
-            g_ref: None,
-            g0_steady: true,
-            g0_decided: false,
-            g_rest: (0.0, 0.0),
+            g_ref: GravityRef::default(),
             prior: ([0.0; 3], [0.0; 3]),
             body_f_lp: [0.0, 0.0, -1.0],
             refused_share: 0.0,
@@ -553,28 +542,12 @@ impl Mekf {
             self.rest.reset();
             None
         } else {
-            Some(self.rest.push(&gyro, &s.accel, dt.max(1e-6), self.g_ref, &self.bias, bs))
+            Some(self.rest.push(&gyro, &s.accel, dt.max(1e-6), self.g_ref.get(), &self.bias, bs))
         };
         // g0 is gravity only if the unit was steady while it was measured
-        // (powered on while driving, it holds the car's acceleration)
-        if !self.g0_decided {
-            self.g0_steady &= rest.is_some_and(|r| r.steady);
-            if s.t >= self.p.g0_window_s {
-                self.g0_decided = true;
-                if self.g0_steady {
-                    self.g_ref = Some(s.g0);
-                }
-            }
-        }
-        if let Some(r) = rest.filter(|r| r.rest) {
-            // at rest |f| is gravity: its mean over the rests, used once it
-            // rests on enough of them (one short false rest must not set it)
-            self.g_rest.0 += norm(&r.accel_lp) * dt;
-            self.g_rest.1 += dt;
-            if self.g_rest.1 >= G_REST_S {
-                self.g_ref = Some(self.g_rest.0 / self.g_rest.1);
-            }
-        }
+        // (powered on while driving, it holds the car's acceleration); then
+        // |f| at the rests
+        self.g_ref.observe(rest.as_ref(), s.t, s.g0, self.p.g0_window_s, dt);
         let at_rest = rest.is_some_and(|r| r.rest);
         let turn = wn > self.p.turn_rate;
         let quiet = dec.band == Band::Inner && !dec.jerk && !turn && !s.suspect;
