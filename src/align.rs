@@ -22,6 +22,7 @@ use crate::adis::{Assembler, Sample};
 use crate::config::Config;
 use crate::estimator::quat::{self, norm};
 use crate::estimator::rest::{GravityRef, RestDetector, RestParams};
+use crate::estimator::G0Mean;
 use std::path::PathBuf;
 
 const D2R: f64 = std::f64::consts::PI / 180.0;
@@ -85,7 +86,7 @@ pub fn align(samples: &[Sample], cfg: &Config) -> Result<Alignment, String> {
     // stop would fail the band), then |f| at the rests
     let window = cfg.estimator.g0_window_s;
     let mut g_ref = GravityRef::default();
-    let (mut g0_sum, mut g0_n) = (0.0, 0u64);
+    let mut g0 = G0Mean::default();
     // 1. standstills and their mean specific force
     let mut rests: Vec<(usize, usize, [f64; 3])> = Vec::new();
     let mut cur: Option<(usize, [f64; 3], usize)> = None;
@@ -94,14 +95,10 @@ pub fn align(samples: &[Sample], cfg: &Config) -> Result<Alignment, String> {
     let mut bias_n = 0usize;
     for (k, s) in samples.iter().enumerate() {
         let t = k as f64 * dt;
-        let amag = norm(&s.accel);
-        if (t < window || g0_n == 0) && amag > 0.0 {
-            g0_sum += amag;
-            g0_n += 1;
-        }
+        g0.push(t, window, &s.accel);
         let g = s.gyro.map(|v| v * D2R);
         let st = det.push(&g, &s.accel, dt, g_ref.get(), &[0.0; 3], [f64::INFINITY; 3]);
-        g_ref.observe(Some(&st), t, g0_sum / g0_n.max(1) as f64, window, dt);
+        g_ref.observe(Some(&st), t, g0.value(), window, dt);
         if st.rest {
             for i in 0..3 {
                 bias_sum[i] += s.gyro[i];

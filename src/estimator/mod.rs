@@ -97,6 +97,45 @@ pub struct Estimate {
     pub ratio: f64,
 }
 
+/// g0: the mean |f| (g) over the first `g0_window_s` seconds, and over the
+/// first sample whatever its time; 1 before any non-zero reading. The
+/// reference of the paper's |a| / g0 bands; `rest::GravityRef` decides
+/// whether it is gravity. The facade and `gyrocomp align` keep one.
+#[derive(Clone, Copy, Debug)]
+pub struct G0Mean {
+    value: f64,
+    sum: f64,
+    n: u64,
+}
+
+impl Default for G0Mean {
+    fn default() -> Self {
+        G0Mean { value: 1.0, sum: 0.0, n: 0 }
+    }
+}
+
+impl G0Mean {
+    /// One sample at `t` s since the first; true while inside the window
+    /// (still measuring).
+    pub fn push(&mut self, t: f64, window_s: f64, accel: &[f64; 3]) -> bool {
+        if t < window_s || self.n == 0 {
+            let amag = quat::norm(accel);
+            if amag > 0.0 {
+                self.sum += amag;
+                self.n += 1;
+                self.value = self.sum / self.n as f64;
+            }
+            true
+        } else {
+            false
+        }
+    }
+
+    pub fn value(&self) -> f64 {
+        self.value
+    }
+}
+
 /// What the estimator learned, for the daemon's state file.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Learned {
@@ -154,9 +193,7 @@ pub struct Estimator {
     filter: Filter,
     started: bool,
     t: f64,
-    g0: f64,
-    g0_sum: f64,
-    g0_n: u64,
+    g0: G0Mean,
     temp_prev: f64,
     prior: Option<Learned>,
     init_bias_sigma: f64,
@@ -249,9 +286,7 @@ impl Estimator {
             filter,
             started: false,
             t: 0.0,
-            g0: 1.0,
-            g0_sum: 0.0,
-            g0_n: 0,
+            g0: G0Mean::default(),
             temp_prev: 0.0,
             prior: None,
             init_bias_sigma: cfg.init_bias_sigma(),
@@ -308,7 +343,7 @@ impl Estimator {
     }
 
     pub fn g0(&self) -> f64 {
-        self.g0
+        self.g0.value()
     }
 
     /// The default filter's counters (None in the paper's modes).
@@ -388,7 +423,8 @@ impl Estimator {
             None => (s.gyro, s.accel, s.magn),
             Some(r) => (quat::rotate(r, &s.gyro), quat::rotate(r, &s.accel), quat::rotate(r, &s.magn)),
         };
-        let mut inp = StepIn { dt: 0.0, t: 0.0, gyro, accel, magn, temp: s.temp, g0: self.g0, dbias: [0.0; 3], suspect: s.suspect() };
+        let mut inp =
+            StepIn { dt: 0.0, t: 0.0, gyro, accel, magn, temp: s.temp, g0: self.g0.value(), dbias: [0.0; 3], suspect: s.suspect() };
         let mut resync = false;
         if !self.started {
             self.start(&inp);
@@ -403,13 +439,7 @@ impl Estimator {
         let t = self.t;
 
         // g0: mean |a| over the first g0_window seconds.
-        if t < self.g0_window || self.g0_n == 0 {
-            let amag = quat::norm(&accel);
-            if amag > 0.0 {
-                self.g0_sum += amag;
-                self.g0_n += 1;
-                self.g0 = self.g0_sum / self.g0_n as f64;
-            }
+        if self.g0.push(t, self.g0_window, &accel) {
             fl |= flags::WARMUP;
         }
         if t < self.warmup && self.mode == Mode::Mekf {
@@ -423,7 +453,7 @@ impl Estimator {
         self.temp_prev = s.temp;
         inp.dt = dt;
         inp.t = t;
-        inp.g0 = self.g0;
+        inp.g0 = self.g0.value();
         inp.dbias = db;
 
         let thermal = &self.thermal;
