@@ -80,6 +80,24 @@ fn bench(c: &mut Criterion) {
             })
         });
     }
+    // The first second after power-on: the default filter runs its bank of
+    // power-on speed hypotheses (seven filters) until the first standstill
+    // or 60 s; per sample, a fresh estimator each batch.
+    let first = (204.8f64) as usize;
+    g.throughput(Throughput::Elements(first as u64));
+    g.bench_function("first_second_default_mekf_with_speed_hypotheses", |b| {
+        b.iter_batched(
+            || Estimator::new(&cfg),
+            |mut est| {
+                for s in &ss[..first] {
+                    black_box(est.step(black_box(s)));
+                }
+                est
+            },
+            BatchSize::SmallInput,
+        )
+    });
+    g.throughput(Throughput::Elements(1));
     // The yardstick: VQF (vqf-rs, a port of the published C++ VQF), 9D, on
     // the same samples converted to its conventions (FLU, m/s^2, rad/s).
     let flu = |v: [f64; 3]| [v[0], -v[1], -v[2]];

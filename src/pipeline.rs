@@ -58,6 +58,8 @@ pub struct Report {
     pub magnetometer: Option<bool>,
     /// The vehicle model in use (None in the paper's modes).
     pub vehicle: Option<bool>,
+    /// The power-on speed hypotheses' outcome (None when they did not run).
+    pub power_on: Option<crate::estimator::PowerOnSpeed>,
     /// Speed frames decoded and dropped (None without `[speed]`).
     #[serde(skip)]
     pub speed: Option<SpeedCounts>,
@@ -87,6 +89,22 @@ impl Report {
                 }
                 None => String::new(),
             };
+            if let Some(p) = &self.power_on {
+                s += &match p.ended {
+                    Some((t, why)) => format!(
+                        "power-on speed: {:.0} m/s kept (hypotheses 0-{:.0} m/s, ended at {:.1} s: {})\n",
+                        p.speed_ms,
+                        crate::estimator::hypotheses::SPEED_MAX,
+                        t,
+                        why.describe()
+                    ),
+                    None => format!(
+                        "power-on speed: {:.0} m/s leads (hypotheses 0-{:.0} m/s, still running)\n",
+                        p.speed_ms,
+                        crate::estimator::hypotheses::SPEED_MAX
+                    ),
+                };
+            }
             s += &match self.magnetometer {
                 Some(true) => format!("magnetometer: used, disturbed {:.1} s (no heading updates then)\n", c.mag_disturbed_s),
                 Some(false) => {
@@ -208,6 +226,7 @@ impl Pipeline {
             mekf: self.estimator.mekf_counters(),
             magnetometer: self.estimator.magnetometer(),
             vehicle: self.estimator.mekf().map(|m| m.vehicle()),
+            power_on: self.estimator.power_on_speed(),
             speed: self.speed_counts(),
             rate: (span >= 5.0).then(|| (1.0 / self.period, self.steps as f64 / span)),
         }

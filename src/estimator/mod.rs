@@ -22,6 +22,7 @@
 //!   bands and acceleration-change criterion (the policy on top of both).
 
 pub mod ekf;
+pub mod hypotheses;
 pub mod mekf;
 pub mod paper;
 pub mod quat;
@@ -32,6 +33,7 @@ use crate::adis::Sample;
 use crate::config::{Config, Mode};
 use crate::estimator::switching::Switching;
 use crate::thermal::{SlopeLearner, SlopeParams, SlopeState, Thermal};
+use hypotheses::{BankEnd, SpeedHypotheses};
 use mekf::{MagUse, Mekf, MekfCounters, MekfParams, G};
 use paper::Paper;
 use rest::RestParams;
@@ -197,6 +199,19 @@ pub struct Estimator {
     temp_prev: f64,
     prior: Option<Learned>,
     init_bias_sigma: f64,
+    /// The default filter's power-on speed hypotheses while they run.
+    hypotheses: Option<Box<SpeedHypotheses>>,
+    power_on: Option<PowerOnSpeed>,
+}
+
+/// The power-on speed hypotheses' outcome (`hypotheses`), for the summary
+/// and the status.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct PowerOnSpeed {
+    /// The power-on forward speed of the hypothesis published, m/s.
+    pub speed_ms: f64,
+    /// When the bank ended (s after power-on) and why; None while it runs.
+    pub ended: Option<(f64, BankEnd)>,
 }
 
 /// The default filter's settings from the config.
@@ -290,6 +305,8 @@ impl Estimator {
             temp_prev: 0.0,
             prior: None,
             init_bias_sigma: cfg.init_bias_sigma(),
+            hypotheses: None,
+            power_on: None,
         }
     }
 
@@ -370,6 +387,17 @@ impl Estimator {
         }
     }
 
+    /// The power-on speed hypotheses' outcome (None: not run, as in the
+    /// paper's modes, with wheel speeds, or for a unit set not to be a vehicle).
+    pub fn power_on_speed(&self) -> Option<PowerOnSpeed> {
+        self.power_on
+    }
+
+    /// The power-on speed hypotheses while they run (for diagnostics).
+    pub fn hypotheses(&self) -> Option<&SpeedHypotheses> {
+        self.hypotheses.as_deref()
+    }
+
     /// The paper's EKF (for tests and diagnostics).
     pub fn paper(&self) -> Option<&Paper> {
         match &self.filter {
@@ -408,6 +436,10 @@ impl Estimator {
             Filter::Mekf(m) => {
                 let sig = sigma.map_or([self.init_bias_sigma * D2R; 3], |v| v.map(|x| (x * D2R).max(1e-4 * D2R)));
                 m.start(&s.accel, &s.magn, bias.map(|b| b * D2R), sig, sigma.is_some());
+                // a car may be moving at power-on: unless it is known not to
+                // be a car, or its wheels will say how fast
+                self.hypotheses = (m.vehicle() && !m.speed_aided()).then(|| Box::new(SpeedHypotheses::new(m)));
+                self.power_on = self.hypotheses.as_ref().map(|_| PowerOnSpeed { speed_ms: 0.0, ended: None });
             }
         }
         self.temp_prev = s.temp;
@@ -468,15 +500,31 @@ impl Estimator {
                 (mode, ffl, ratio, p.attitude(), b, sp.then_some((s.temp, b, dt)), p.state_is_finite())
             }
             Filter::Mekf(m) => {
-                if resync {
+                let widen = resync.then(|| {
                     // The longer the gap, the less is known: over it the unit may have
                     // turned (30 deg/s) and changed speed (3 m/s^2); a counter restart
                     // is a gap of unknown length. At most a quarter turn.
                     let gap = if s.steps == 0 { 10.0 } else { s.steps as f64 * self.period };
                     let att = (5.0 * D2R + 30.0 * D2R * gap).min(90.0 * D2R);
-                    m.resync(att * att, 4.0 + (3.0 * gap).powi(2));
+                    (att * att, 4.0 + (3.0 * gap).powi(2))
+                });
+                if let Some((att, vel)) = widen {
+                    m.resync(att, vel);
                 }
-                let (mode, ffl, ratio) = m.step(&inp);
+                let (mut mode, mut ffl, ratio) = m.step(&inp);
+                if let Some(h) = self.hypotheses.as_mut() {
+                    let b = h.step(&inp, widen, m);
+                    if b.switched {
+                        // another filter is published: its tick's outcome
+                        let (md, tf) = m.tick_outcome();
+                        mode = md;
+                        ffl = (ffl & (flags::JERK | flags::RESYNC)) | tf;
+                    }
+                    self.power_on = Some(PowerOnSpeed { speed_ms: h.published_speed(), ended: b.ended.map(|e| (t, e)) });
+                    if b.ended.is_some() {
+                        self.hypotheses = None;
+                    }
+                }
                 let b = m.bias;
                 let sp = m.rest_point.take();
                 (mode, ffl, ratio, m.euler(), [b[0] * R2D, b[1] * R2D, b[2] * R2D], sp, m.started())

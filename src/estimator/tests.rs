@@ -500,8 +500,9 @@ fn mekf_magnetometer_auto_off_when_absent_and_disturbance_is_flagged() {
 #[test]
 fn thermal_disabled_for_a_part_without_temperature() {
     // a slope that would move the bias by 1 deg/s over the temperature swing
-    let c = "[thermal]\nenabled = false\np1 = [0.05, 0.05, 0.05]";
-    for mode in ["paper", "mekf"] {
+    // (the default filter's own learning is whatever it is on this input:
+    // the disabled curve must leave it exactly as a zero curve does)
+    let run = |mode: &str, c: &str| {
         let mut e = Estimator::new(&Config::parse(&format!("[estimator]\nmode = \"{mode}\"\n{c}"), "t").unwrap());
         let mut est = Estimate::default();
         for k in 0..2000u32 {
@@ -509,8 +510,19 @@ fn thermal_disabled_for_a_part_without_temperature() {
             s.accel = [0.0, 0.0, -1.5]; // out of band: no learning in paper mode
             est = e.step(&s);
         }
-        assert!(est.bias.iter().all(|b| b.abs() < 1e-9), "{mode}: {:?}", est.bias);
+        est
+    };
+    for mode in ["paper", "mekf"] {
+        let est = run(mode, "[thermal]\nenabled = false\np1 = [0.05, 0.05, 0.05]");
+        let zero = run(mode, "[thermal]\np1 = [0.0, 0.0, 0.0]");
+        assert_eq!(est.bias, zero.bias, "{mode}");
+        if mode == "paper" {
+            assert!(est.bias.iter().all(|b| b.abs() < 1e-9), "{mode}: {:?}", est.bias);
+        }
         assert_eq!(est.flags & flags::THERMAL_CLAMP, 0);
+        // and the curve does move it when enabled
+        let on = run(mode, "[thermal]\np1 = [0.05, 0.05, 0.05]");
+        assert_ne!(on.bias, est.bias, "{mode}");
     }
 }
 
@@ -585,4 +597,72 @@ fn mekf_a_heading_the_gate_refuses_for_long_is_opened_to_the_field() {
     let moved = angle_err(est.yaw, before);
     assert!((moved - 30.0).abs() < 2.0, "heading moved by {moved} deg, the field by 30");
     assert_eq!(est.flags & flags::MAG_DISTURBED, 0);
+}
+
+/// A car at `v` m/s on a level road weaving left and right (yaw rate
+/// `r_max sin(2 pi t / period)` deg/s): the NED acceleration is centripetal.
+fn weave(m: &mut Motion, v: f64, r_max: f64, period: f64) -> Sample {
+    let t = m.k as f64 / 204.8;
+    let r = r_max * (2.0 * PI * t / period).sin();
+    let yaw = m.euler()[2] * D2R;
+    let lat = v * r * D2R / 9.80665;
+    m.step([0.0, 0.0, r], [-lat * yaw.sin(), lat * yaw.cos(), 0.0])
+}
+
+#[test]
+fn mekf_powered_on_at_speed_finds_the_speed_at_the_first_turns() {
+    // A daemon's first start on the road, IMU only, no saved state: the car
+    // does 13 m/s and weaves (0.6 g at 45 deg/s). A filter that takes the
+    // car for standing reads the centripetal acceleration as roll and bias
+    // (20-35 deg on the simulated urban drives); the speed hypotheses find
+    // the speed at the first turns.
+    let bias = [1.5, -1.0, 2.0];
+    let mut m = Motion::new(204.8, bias, 0.0, 0.0, 20.0);
+    let mut e = mekf("");
+    let mut worst: f64 = 0.0;
+    for _ in 0..(204.8 * 40.0) as u32 {
+        let est = e.step(&weave(&mut m, 13.0, 45.0, 6.0));
+        let t = m.euler();
+        if m.k as f64 > 204.8 * 10.0 {
+            worst = worst.max(angle_err(est.roll, t[0])).max(angle_err(est.pitch, t[1]));
+        }
+    }
+    assert!(worst < 2.0, "roll/pitch error {worst} deg from 10 s");
+    let p = e.power_on_speed().unwrap();
+    assert_eq!(p.speed_ms, 12.0, "{p:?}");
+    assert_eq!(p.ended, None, "no standstill, not 60 s yet: {p:?}");
+    // a constant speed shows only through the turns: within the hypothesis' sigma
+    let u = e.mekf().unwrap().forward_speed();
+    assert!((u - 13.0).abs() < 0.5 * hypotheses::SPEED_STEP, "forward speed {u}");
+    println!("worst roll/pitch from 10 s {worst:.3} deg, forward speed {u:.2} m/s");
+}
+
+#[test]
+fn mekf_speed_hypotheses_end_at_the_first_standstill_or_for_a_hand_held_unit() {
+    // parked: zero speed, ended by the first standstill
+    let mut m = Motion::new(204.8, [2.0, -1.0, 0.5], 1.0, -1.0, 0.0);
+    let mut e = mekf("");
+    for _ in 0..(204.8 * 5.0) as u32 {
+        e.step(&m.step([0.0; 3], [0.0; 3]));
+    }
+    let p = e.power_on_speed().unwrap();
+    assert_eq!(p.speed_ms, 0.0);
+    assert!(matches!(p.ended, Some((t, BankEnd::Standstill)) if t < 3.0), "{p:?}");
+    // hand-held: rolling and pitching by tens of deg/s is no car
+    let mut m = Motion::new(204.8, [0.5, 0.2, -0.3], 0.0, 0.0, 0.0);
+    let mut e = mekf("");
+    for k in 0..(204.8 * 5.0) as u32 {
+        let t = k as f64 / 204.8;
+        let w = 60.0 * (2.0 * PI * t / 2.0).sin();
+        e.step(&m.step([w, 0.7 * w, 0.0], [0.0; 3]));
+    }
+    let p = e.power_on_speed().unwrap();
+    assert_eq!(p.speed_ms, 0.0);
+    assert!(matches!(p.ended, Some((_, BankEnd::NotVehicle))), "{p:?}");
+    assert!(!e.mekf().unwrap().vehicle());
+    // with the car's wheel speeds, or set not to be a vehicle: no hypotheses
+    let e = mekf("[mekf]\nvehicle = false\n");
+    let mut e2 = e.clone();
+    e2.step(&rest(0, [0.0; 3], 0.0, 25.0));
+    assert_eq!(e2.power_on_speed(), None);
 }

@@ -121,6 +121,9 @@ impl Mekf {
             return Upd::Skipped;
         }
         let nu = nu - hdx;
+        if self.scoring && gain.velocity {
+            self.log_likelihood -= 0.5 * ((nu * nu / s).min(gate) + s.ln());
+        }
         if nu * nu > gate * s {
             return Upd::Gated;
         }

@@ -9,7 +9,7 @@ impl Mekf {
     /// rear axle) or, for a unit that is not a vehicle, a bounded velocity.
     /// Returns (fused any, gated any).
     pub(super) fn velocity_updates(&mut self, omega: &[f64; 3], learn: bool, gate: f64) -> (bool, bool) {
-        let gain = Gain { tilt: true, bias: learn };
+        let gain = Gain { tilt: true, bias: learn, velocity: false };
         let mut fused = false;
         let mut gated = false;
         let mut note = |u: Upd| match u {
@@ -25,7 +25,7 @@ impl Mekf {
         }
         for &i in axes {
             let (nu, h) = self.body_velocity_row(i, omega);
-            let u = self.update(&h, -nu, var, gain, gate);
+            let u = self.update(&h, -nu, var, Gain { velocity: true, ..gain }, gate);
             note(u);
         }
         (fused, gated)
@@ -72,7 +72,7 @@ impl Mekf {
         let (val, mut h) = self.body_velocity_row(0, omega);
         h[SC] = -vw;
         let nu = vw * (1.0 + self.scale) - val;
-        self.update(&h, nu, self.p.speed_var, Gain { tilt: true, bias: learn }, gate)
+        self.update(&h, nu, self.p.speed_var, Gain { tilt: true, bias: learn, velocity: true }, gate)
     }
 
     /// Heading from the magnetometer. Some(fused) or None when disturbed.
@@ -121,7 +121,7 @@ impl Mekf {
         h[TH] = mn[0] * mn[2] / h2;
         h[TH + 1] = mn[1] * mn[2] / h2;
         h[TH + 2] = -1.0;
-        let u = self.update(&h, nu, self.p.yaw_var, Gain { tilt: false, bias: learn }, gate);
+        let u = self.update(&h, nu, self.p.yaw_var, Gain { tilt: false, bias: learn, velocity: false }, gate);
         // an undisturbed field refused for long: the heading, not the field,
         // is wrong (it was set with a wrong tilt, or drifted with a wrong z
         // bias); open it to what the field says, never a lock-out

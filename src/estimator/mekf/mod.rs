@@ -164,6 +164,9 @@ struct Gain {
     /// The tilt (dθ_x, dθ_y).
     tilt: bool,
     bias: bool,
+    /// A measurement of the velocity: scored for the power-on speed
+    /// hypotheses (`super::hypotheses`) while scoring.
+    velocity: bool,
 }
 
 /// Per-tick sums.
@@ -287,6 +290,11 @@ pub struct Mekf {
     /// A learning point for the thermal slope: (temp, bias deg/s, weight s).
     pub rest_point: Option<(f64, [f64; 3], f64)>,
     pub counters: MekfCounters,
+    /// While scoring: the log-likelihood of every scalar measurement since
+    /// the start, given this filter's prediction (`-(min(NIS, gate) + ln S) / 2`
+    /// each), for comparing power-on hypotheses (`super::hypotheses`).
+    scoring: bool,
+    log_likelihood: f64,
 }
 
 impl Mekf {
@@ -338,6 +346,8 @@ impl Mekf {
             last_learned: None,
             rest_point: None,
             counters: MekfCounters::default(),
+            scoring: false,
+            log_likelihood: 0.0,
         }
     }
 
@@ -367,6 +377,47 @@ impl Mekf {
         self.mode = 2;
         self.tick_flags = 0;
         self.started = true;
+    }
+
+    /// A power-on hypothesis of the forward speed (m/s, along the vehicle's
+    /// x axis) with its 1-sigma; the lateral and vertical velocity keep
+    /// `init_speed_sigma`. Call right after `start`; starts scoring.
+    pub fn set_speed_hypothesis(&mut self, u: f64, sigma: f64) {
+        let c = self.c;
+        self.v = [c[0][0] * u, c[1][0] * u, c[2][0] * u];
+        let s2 = self.p.init_speed_sigma * self.p.init_speed_sigma;
+        let d = [sigma * sigma, s2, s2];
+        // C diag(d) C^T: the forward axis's variance along the body x axis
+        for i in 0..3 {
+            for j in 0..3 {
+                self.cov[VE + i][VE + j] = (0..3).map(|k| c[i][k] * d[k] * c[j][k]).sum();
+            }
+        }
+        self.scoring = true;
+        self.log_likelihood = 0.0;
+    }
+
+    /// Start or stop accumulating the log-likelihood (see `log_likelihood`).
+    pub fn set_scoring(&mut self, on: bool) {
+        self.scoring = on;
+        if on {
+            self.log_likelihood = 0.0;
+        }
+    }
+
+    /// The log-likelihood of the measurements since scoring started.
+    pub fn log_likelihood(&self) -> f64 {
+        self.log_likelihood
+    }
+
+    /// The last tick's mode and flags (what `step` reports between ticks).
+    pub fn tick_outcome(&self) -> (u8, u16) {
+        (self.mode, self.tick_flags)
+    }
+
+    /// Whether the vehicle's speed is configured as a measurement.
+    pub fn speed_aided(&self) -> bool {
+        self.p.speed_aided
     }
 
     pub fn started(&self) -> bool {

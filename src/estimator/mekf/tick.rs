@@ -177,7 +177,7 @@ impl Mekf {
     fn still_updates(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome) {
         let n = a.n as f64;
         let gate = self.p.gate;
-        let all = Gain { tilt: true, bias: true };
+        let all = Gain { tilt: true, bias: true, velocity: false };
         let note = |u: Upd, o: &mut Outcome| match u {
             Upd::Fused => {
                 o.fused = true;
@@ -190,7 +190,7 @@ impl Mekf {
             for i in 0..3 {
                 let mut h = [0.0; N];
                 h[VE + i] = 1.0;
-                let u = self.update(&h, -self.v[i], self.p.zupt_var, all, gate);
+                let u = self.update(&h, -self.v[i], self.p.zupt_var, Gain { velocity: true, ..all }, gate);
                 note(u, o);
             }
         }

@@ -1,0 +1,154 @@
+//! Power-on speed hypotheses of the default filter.
+//!
+//! A vehicle computer may power on (or its daemon restart) while the car is
+//! driving. Without wheel speeds nothing tells the filter how fast: it
+//! starts at zero speed with a wide sigma, and a car that is really doing
+//! 13 m/s then turns. The velocity error, fixed in the navigation frame,
+//! becomes a lateral velocity in the turn, and the filter (whose bias is
+//! still unknown) reads part of it as roll and bias: roll and pitch errors
+//! of 20-35 deg before the first stop on the simulated urban drives. The
+//! same filter started within +-5 m/s of the true speed stays under 2 deg.
+//!
+//! So at power-on the filter runs as a bank: the published filter (zero
+//! speed, `init_speed_sigma`, the filter as it always started) and one copy
+//! per forward speed `SPEED_STEP`, `2 SPEED_STEP`, ... up to `SPEED_MAX`,
+//! each with `SPEED_STEP / 2` sigma. They see the same samples and make the
+//! same decisions (rest, vehicle, policy) from the measurements; each
+//! scores the measurements by its own prediction (the log-likelihood of the
+//! innovations, `Mekf::log_likelihood`). The best one is published; another
+//! replaces it when it leads by `SWITCH_NATS`. The bank ends, keeping the
+//! best, at the first standstill (the speed is then known to be zero),
+//! after `BANK_S` seconds, or when the unit turns out not to be a vehicle
+//! (then the zero-speed filter is kept: the hypotheses are a car's speeds).
+//! It costs one step per hypothesis while it runs; no allocation per step.
+
+use super::mekf::Mekf;
+use super::StepIn;
+
+/// Spacing of the forward-speed hypotheses, m/s (each has half of it as
+/// its sigma), and the largest (130 km/h).
+pub const SPEED_STEP: f64 = 6.0;
+pub const SPEED_MAX: f64 = 36.0;
+/// Number of alternative hypotheses (besides the published zero-speed one).
+const ALTERNATIVES: usize = (SPEED_MAX / SPEED_STEP) as usize;
+/// A hypothesis replaces the published one when its log-likelihood is
+/// larger by this much (a likelihood ratio of e^10, 22 000: on a parked or
+/// straight start the hypotheses wander within a few nats of each other;
+/// powered on moving, the first turn puts tens to hundreds between them).
+pub const SWITCH_NATS: f64 = 10.0;
+/// The bank ends this long after power-on at the latest, s.
+pub const BANK_S: f64 = 60.0;
+
+/// The alternatives to the published filter, while the bank runs.
+#[derive(Clone, Debug)]
+pub struct SpeedHypotheses {
+    alternatives: Vec<Mekf>,
+    /// Power-on speed of each hypothesis, m/s: `[0]` the published filter's,
+    /// `[i + 1]` that of `alternatives[i]`.
+    speeds: Vec<f64>,
+}
+
+/// Why the bank ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum BankEnd {
+    /// The first standstill: the speed is zero, whatever it was.
+    Standstill,
+    /// `BANK_S` after power-on.
+    Timeout,
+    /// The motion is not a ground vehicle's.
+    NotVehicle,
+}
+
+impl BankEnd {
+    pub fn describe(self) -> &'static str {
+        match self {
+            BankEnd::Standstill => "first standstill",
+            BankEnd::Timeout => "time limit",
+            BankEnd::NotVehicle => "not a vehicle",
+        }
+    }
+}
+
+/// What the bank did on a sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BankStep {
+    /// Another hypothesis is published from this sample on.
+    pub switched: bool,
+    /// The bank has ended (the published filter is the one kept), and why.
+    pub ended: Option<BankEnd>,
+}
+
+impl SpeedHypotheses {
+    /// The bank for a filter just started (`published`); it starts scoring.
+    pub fn new(published: &mut Mekf) -> SpeedHypotheses {
+        published.set_scoring(true);
+        let mut alternatives = Vec::with_capacity(ALTERNATIVES);
+        let mut speeds = vec![0.0];
+        for k in 1..=ALTERNATIVES {
+            let u = k as f64 * SPEED_STEP;
+            let mut m = published.clone();
+            m.set_speed_hypothesis(u, 0.5 * SPEED_STEP);
+            alternatives.push(m);
+            speeds.push(u);
+        }
+        SpeedHypotheses { alternatives, speeds }
+    }
+
+    /// The power-on speed of the hypothesis published now, m/s.
+    pub fn published_speed(&self) -> f64 {
+        self.speeds[0]
+    }
+
+    /// (power-on speed m/s, log-likelihood, forward speed now m/s) of each
+    /// alternative, for diagnostics.
+    pub fn alternatives(&self) -> Vec<(f64, f64, f64)> {
+        self.alternatives.iter().zip(&self.speeds[1..]).map(|(m, u)| (*u, m.log_likelihood(), m.forward_speed())).collect()
+    }
+
+    /// Step every alternative on the sample the published filter has just
+    /// stepped on (`resync`: the facade's resync of it, applied to each
+    /// first), then publish the best and decide whether the bank ends.
+    pub fn step(&mut self, s: &StepIn, resync: Option<(f64, f64)>, published: &mut Mekf) -> BankStep {
+        for m in self.alternatives.iter_mut() {
+            if let Some((att, vel)) = resync {
+                m.resync(att, vel);
+            }
+            m.step(s);
+        }
+        let (mut best, mut best_ll) = (usize::MAX, published.log_likelihood() + SWITCH_NATS);
+        for (i, m) in self.alternatives.iter().enumerate() {
+            if m.log_likelihood() > best_ll {
+                best = i;
+                best_ll = m.log_likelihood();
+            }
+        }
+        let mut switched = best != usize::MAX;
+        if switched {
+            std::mem::swap(published, &mut self.alternatives[best]);
+            self.speeds.swap(0, best + 1);
+        }
+        if !published.vehicle() {
+            // not a car: the hypotheses were a car's speeds; keep zero speed
+            if self.speeds[0] != 0.0 {
+                if let Some(i) = self.speeds.iter().position(|u| *u == 0.0) {
+                    std::mem::swap(published, &mut self.alternatives[i - 1]);
+                    self.speeds.swap(0, i);
+                    switched = true;
+                }
+            }
+            published.set_scoring(false);
+            return BankStep { switched, ended: Some(BankEnd::NotVehicle) };
+        }
+        let ended = if published.counters.rest_s > 0.0 {
+            Some(BankEnd::Standstill)
+        } else if s.t >= BANK_S {
+            Some(BankEnd::Timeout)
+        } else {
+            None
+        };
+        if ended.is_some() {
+            published.set_scoring(false);
+        }
+        BankStep { switched, ended }
+    }
+}
