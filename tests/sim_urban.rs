@@ -353,3 +353,21 @@ fn evaluate_runs_urban_seeds() {
         assert!(out.contains(&want), "{out}");
     }
 }
+
+/// Replay tells which power-on speed the default filter kept and why the
+/// hypotheses ended: powered on at 13 m/s (seed 7), IMU only, the 12 m/s
+/// hypothesis until the first standstill; parked, zero speed at once.
+#[test]
+fn replay_summary_names_the_power_on_speed_kept() {
+    let t = tempfile::tempdir().unwrap();
+    for (moving, expect) in [(true, "power-on speed: 12 m/s kept"), (false, "power-on speed: 0 m/s kept")] {
+        let mut o = urban(7, moving);
+        o.duration = Some(120.0);
+        let d = t.path().join(format!("run{moving}"));
+        simulate(&o, &d).unwrap();
+        let cfg = Config::load(&d.join("config.toml")).unwrap();
+        let sum = replay_files(&cfg, &ReplayFiles { input: &d.join("imu.log"), output: None, csv: None }, None).unwrap();
+        let text = sum.render();
+        assert!(text.contains(expect) && text.contains("first standstill"), "moving {moving}:\n{text}");
+    }
+}

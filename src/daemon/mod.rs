@@ -473,6 +473,12 @@ fn status_line(last: &Option<Estimate>, silent: bool, pipe: &Pipeline, shell: &S
             Some(false) => ", magnetometer off",
             None => "",
         };
+        if let Some(p) = &r.power_on {
+            what += &match p.ended {
+                None => format!(", power-on speed {:.0} m/s leads (hypotheses running)", p.speed_ms),
+                Some((_, why)) => format!(", power-on speed {:.0} m/s kept ({})", p.speed_ms, why.describe()),
+            };
+        }
     }
     match last {
         None => format!("waiting for samples; dropped {}", c.dropped()),
