@@ -1,7 +1,7 @@
 //! `gyrocomp evaluate` scores known cases right.
 
 use gyrocomp::config::Config;
-use gyrocomp::evaluate::{evaluate_dir, oracle, score, EvalOptions, RunData};
+use gyrocomp::evaluate::{evaluate_dir, oracle, score, EvalOptions, Metrics, RunData};
 use gyrocomp::sim::model::SensorModel;
 use gyrocomp::sim::{simulate, SimOptions};
 
@@ -146,6 +146,20 @@ fn default_holds_attitude_in_city_driving() {
     assert!(paper.tilt_max() > 5.0 * m.tilt_max(), "paper {} vs {}", paper.tilt_max(), m.tilt_max());
 }
 
+/// The default filter on urban `seed` powered on while driving, IMU only,
+/// no saved state, scored from `from_s`.
+fn urban_powered_on_while_driving(seed: u64, from_s: f64) -> Metrics {
+    let mut o = SimOptions::new("urban", seed);
+    o.power_on_moving = true;
+    let data = RunData::simulate(&o).unwrap();
+    let mut c = Config::default();
+    let u = data.unit_config.as_ref().unwrap();
+    c.thermal = u.thermal.clone();
+    c.mounting = u.mounting.clone();
+    let (est, ms) = data.estimates(&c).unwrap();
+    score("x", &data, &est, ms, from_s)
+}
+
 /// Powered on while driving, IMU only, no saved state (a daemon's first start
 /// on the road): before the first stop nothing tells a tilt from an
 /// acceleration, but the filter must not diverge for good. On the seeds that
@@ -156,15 +170,7 @@ fn default_holds_attitude_in_city_driving() {
 #[test]
 fn default_powered_on_while_driving_converges_at_the_stops() {
     for seed in [3u64, 6, 7, 9, 15, 16] {
-        let mut o = SimOptions::new("urban", seed);
-        o.power_on_moving = true;
-        let data = RunData::simulate(&o).unwrap();
-        let mut c = Config::default();
-        let u = data.unit_config.as_ref().unwrap();
-        c.thermal = u.thermal.clone();
-        c.mounting = u.mounting.clone();
-        let (est, ms) = data.estimates(&c).unwrap();
-        let m = score("x", &data, &est, ms, 100.0);
+        let m = urban_powered_on_while_driving(seed, 100.0);
         assert!(m.max_err[0] <= 1.0 && m.max_err[1] <= 1.0, "seed {seed}: max roll/pitch from 100 s {:?}", m.max_err);
     }
 }
@@ -178,15 +184,7 @@ fn default_powered_on_while_driving_converges_at_the_stops() {
 fn default_powered_on_while_driving_meets_the_urban_target_from_10_s() {
     let mut maxes = Vec::new();
     for seed in 1..=20u64 {
-        let mut o = SimOptions::new("urban", seed);
-        o.power_on_moving = true;
-        let data = RunData::simulate(&o).unwrap();
-        let mut c = Config::default();
-        let u = data.unit_config.as_ref().unwrap();
-        c.thermal = u.thermal.clone();
-        c.mounting = u.mounting.clone();
-        let (est, ms) = data.estimates(&c).unwrap();
-        let m = score("x", &data, &est, ms, 10.0);
+        let m = urban_powered_on_while_driving(seed, 10.0);
         println!("seed {seed}: max roll {:.3} pitch {:.3} deg", m.max_err[0], m.max_err[1]);
         maxes.push(m.max_err[0].max(m.max_err[1]));
     }
