@@ -99,12 +99,6 @@ impl SpeedHypotheses {
         self.speeds[0]
     }
 
-    /// (power-on speed m/s, log-likelihood, forward speed now m/s) of each
-    /// alternative, for diagnostics.
-    pub fn alternatives(&self) -> Vec<(f64, f64, f64)> {
-        self.alternatives.iter().zip(&self.speeds[1..]).map(|(m, u)| (*u, m.log_likelihood(), m.forward_speed())).collect()
-    }
-
     /// Step every alternative on the sample the published filter has just
     /// stepped on (`resync`: the facade's resync of it, applied to each
     /// first), then publish the best and decide whether the bank ends.

@@ -393,11 +393,6 @@ impl Estimator {
         self.power_on
     }
 
-    /// The power-on speed hypotheses while they run (for diagnostics).
-    pub fn hypotheses(&self) -> Option<&SpeedHypotheses> {
-        self.hypotheses.as_deref()
-    }
-
     /// The paper's EKF (for tests and diagnostics).
     pub fn paper(&self) -> Option<&Paper> {
         match &self.filter {
