@@ -506,14 +506,12 @@ impl Estimator {
                 if let Some((att, vel)) = widen {
                     m.resync(att, vel);
                 }
-                let (mut mode, mut ffl, ratio) = m.step(&inp);
+                let (mut mode, mut ffl, mut ratio) = m.step(&inp);
                 if let Some(h) = self.hypotheses.as_mut() {
                     let b = h.step(&inp, widen, m);
                     if b.switched {
-                        // another filter is published: its tick's outcome
-                        let (md, tf) = m.tick_outcome();
-                        mode = md;
-                        ffl = (ffl & (flags::JERK | flags::RESYNC)) | tf;
+                        // another filter is published: what its step returned
+                        (mode, ffl, ratio) = m.last_step();
                     }
                     self.power_on = Some(PowerOnSpeed { speed_ms: h.published_speed(), ended: b.ended.map(|e| (t, e)) });
                     if b.ended.is_some() {

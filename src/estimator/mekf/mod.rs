@@ -295,6 +295,8 @@ pub struct Mekf {
     /// each), for comparing power-on hypotheses (`super::hypotheses`).
     scoring: bool,
     log_likelihood: f64,
+    /// What the last `step` returned (mode, flags, ratio).
+    last_step: (u8, u16, f64),
 }
 
 impl Mekf {
@@ -348,6 +350,7 @@ impl Mekf {
             counters: MekfCounters::default(),
             scoring: false,
             log_likelihood: 0.0,
+            last_step: (2, 0, 1.0),
         }
     }
 
@@ -393,8 +396,7 @@ impl Mekf {
                 self.cov[VE + i][VE + j] = (0..3).map(|k| c[i][k] * d[k] * c[j][k]).sum();
             }
         }
-        self.scoring = true;
-        self.log_likelihood = 0.0;
+        self.set_scoring(true);
     }
 
     /// Start or stop accumulating the log-likelihood (see `log_likelihood`).
@@ -410,9 +412,9 @@ impl Mekf {
         self.log_likelihood
     }
 
-    /// The last tick's mode and flags (what `step` reports between ticks).
-    pub fn tick_outcome(&self) -> (u8, u16) {
-        (self.mode, self.tick_flags)
+    /// What the last `step` returned.
+    pub fn last_step(&self) -> (u8, u16, f64) {
+        self.last_step
     }
 
     /// Whether the vehicle's speed is configured as a measurement.
@@ -634,7 +636,8 @@ impl Mekf {
             self.started = false;
             fl |= flags::RESYNC;
         }
-        (self.mode, fl | self.tick_flags, dec.ratio)
+        self.last_step = (self.mode, fl | self.tick_flags, dec.ratio);
+        self.last_step
     }
 
     /// The state at power-on (and at a restart): the attitude given, the
