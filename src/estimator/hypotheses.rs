@@ -100,12 +100,12 @@ impl SpeedHypotheses {
     }
 
     /// Step every alternative on the sample the published filter has just
-    /// stepped on (`resync`: the facade's resync of it, applied to each
-    /// first), then publish the best and decide whether the bank ends.
-    pub fn step(&mut self, s: &StepIn, resync: Option<(f64, f64)>, published: &mut Mekf) -> BankStep {
+    /// stepped on (`resync`: the facade's resync of it, the gap in
+    /// seconds, applied to each first), then publish the best and decide whether the bank ends.
+    pub fn step(&mut self, s: &StepIn, resync: Option<f64>, published: &mut Mekf) -> BankStep {
         for m in self.alternatives.iter_mut() {
-            if let Some((att, vel)) = resync {
-                m.resync(att, vel);
+            if let Some(gap) = resync {
+                m.resync(gap);
             }
             m.step(s);
         }

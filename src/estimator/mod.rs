@@ -40,6 +40,8 @@ use rest::RestParams;
 
 const D2R: f64 = std::f64::consts::PI / 180.0;
 const R2D: f64 = 180.0 / std::f64::consts::PI;
+/// The length assumed for a counter restart (a gap of unknown length), s.
+const UNKNOWN_GAP_S: f64 = 10.0;
 
 /// Health flags carried in `EST_STATUS` (the DBC puts flag bit `i` at bit `i + 2`).
 pub mod flags {
@@ -495,20 +497,14 @@ impl Estimator {
                 (mode, ffl, ratio, p.attitude(), b, sp.then_some((s.temp, b, dt)), p.state_is_finite())
             }
             Filter::Mekf(m) => {
-                let widen = resync.then(|| {
-                    // The longer the gap, the less is known: over it the unit may have
-                    // turned (30 deg/s) and changed speed (3 m/s^2); a counter restart
-                    // is a gap of unknown length. At most a quarter turn.
-                    let gap = if s.steps == 0 { 10.0 } else { s.steps as f64 * self.period };
-                    let att = (5.0 * D2R + 30.0 * D2R * gap).min(90.0 * D2R);
-                    (att * att, 4.0 + (3.0 * gap).powi(2))
-                });
-                if let Some((att, vel)) = widen {
-                    m.resync(att, vel);
+                // a counter restart is a gap of unknown length
+                let gap = resync.then_some(if s.steps == 0 { UNKNOWN_GAP_S } else { s.steps as f64 * self.period });
+                if let Some(g) = gap {
+                    m.resync(g);
                 }
                 let (mut mode, mut ffl, mut ratio) = m.step(&inp);
                 if let Some(h) = self.hypotheses.as_mut() {
-                    let b = h.step(&inp, widen, m);
+                    let b = h.step(&inp, gap, m);
                     if b.switched {
                         // another filter is published: what its step returned
                         (mode, ffl, ratio) = m.last_step();

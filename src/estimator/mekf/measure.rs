@@ -117,6 +117,16 @@ impl Mekf {
         }
         let psi = quat::atan2(mn[1], mn[0]);
         let nu = wrap_pi(psi - self.p.declination);
+        if self.heading_open {
+            // The car turned over a gap: take the field's heading whole, the
+            // velocity turning with it, then fuse it as usual. The tick's
+            // corrections so far are in the old frame: apply them first.
+            self.inject();
+            let mn = rotate(&self.c, m);
+            self.turn_heading(-wrap_pi(quat::atan2(mn[1], mn[0]) - self.p.declination));
+            self.heading_open = false;
+            return self.heading_update(m, at_rest, learn, gate);
+        }
         let mut h = [0.0; N];
         h[TH] = mn[0] * mn[2] / h2;
         h[TH + 1] = mn[1] * mn[2] / h2;

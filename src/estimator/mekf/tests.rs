@@ -127,3 +127,79 @@ fn transition_matches_propagating_a_perturbed_state() {
         }
     }
 }
+
+/// A car's resync widens only what the vehicle constraint cannot see: the
+/// whole state turned (attitude and velocity together) and the speed along
+/// the body x axis. The constraint rows' predicted variance `h P h^T` is
+/// what it was before the gap; the attitude opens by at most 5 deg. A unit
+/// that is not a vehicle opens its attitude by the gap's whole turn.
+#[test]
+fn a_cars_resync_opens_only_what_the_constraint_cannot_see() {
+    let mut m = filter();
+    m.vehicle = true;
+    // a car drives along its x axis
+    m.v = rotate(&m.c, &[8.0, 0.0, 0.0]);
+    let omega = [0.0, 0.0, 0.2];
+    let hph = |m: &Mekf, axis: usize| {
+        let (_, h) = m.body_velocity_row(axis, &omega);
+        (0..N).map(|i| (0..N).map(|j| h[i] * m.cov[i][j] * h[j]).sum::<f64>()).sum::<f64>()
+    };
+    let before = [hph(&m, 1), hph(&m, 2)];
+    let th0 = m.cov[TH][TH];
+    let fwd0 = m.cov;
+    m.resync(4.0);
+    for (axis, b) in [1, 2].into_iter().zip(before) {
+        let a = hph(&m, axis);
+        assert!((a - b).abs() < 1e-9 * (1.0 + b), "constraint {axis}: h P h^T {b} -> {a}");
+    }
+    let opened = (m.cov[TH][TH] - th0).sqrt();
+    assert!((opened - 5.0 * D2R).abs() < 1e-12, "tilt opened by {} deg", opened / D2R);
+    // the speed along the body x axis opened by 4 + (3 x 4)^2
+    let cx = [m.c[0][0], m.c[1][0], m.c[2][0]];
+    let var_x = |p: &[[f64; N]; N]| (0..3).map(|i| (0..3).map(|j| cx[i] * p[VE + i][VE + j] * cx[j]).sum::<f64>()).sum::<f64>();
+    assert!((var_x(&m.cov) - var_x(&fwd0) - 148.0).abs() < 1e-9, "forward speed variance {} -> {}", var_x(&fwd0), var_x(&m.cov));
+    assert!(m.heading_open && m.lever_pending);
+
+    let mut h = filter();
+    h.vehicle = false;
+    let th0 = h.cov[TH + 1][TH + 1];
+    h.resync(4.0);
+    let opened = (h.cov[TH + 1][TH + 1] - th0).sqrt();
+    assert!((opened - 90.0 * D2R).abs() < 1e-12, "hand-held tilt opened by {} deg", opened / D2R);
+    assert!(!h.heading_open);
+}
+
+/// Turning the whole state about the down axis changes nothing the body
+/// sees: the body-frame velocity, the constraint rows and their predicted
+/// variance, the bias; the heading moves by the angle and the velocity with it.
+#[test]
+fn turning_the_heading_turns_the_state_and_its_covariance_together() {
+    let mut m = filter();
+    m.resync(2.0);
+    let omega = [0.01, -0.02, 0.3];
+    let rows = |m: &Mekf| {
+        [1, 2].map(|axis| {
+            let (val, h) = m.body_velocity_row(axis, &omega);
+            let s: f64 = (0..N).map(|i| (0..N).map(|j| h[i] * m.cov[i][j] * h[j]).sum::<f64>()).sum();
+            (val, s)
+        })
+    };
+    let (vb0, r0, yaw0, b0) = (rotate_t(&m.c, &m.v), rows(&m), m.euler()[2], m.bias);
+    let psi = 0.7;
+    m.turn_heading(psi);
+    let vb1 = rotate_t(&m.c, &m.v);
+    for i in 0..3 {
+        assert!((vb1[i] - vb0[i]).abs() < 1e-12, "body velocity {vb0:?} -> {vb1:?}");
+    }
+    for (a, b) in rows(&m).iter().zip(&r0) {
+        assert!((a.0 - b.0).abs() < 1e-12 && (a.1 - b.1).abs() < 1e-9 * (1.0 + b.1), "row {b:?} -> {a:?}");
+    }
+    let turned = wrap_pi(m.euler()[2] - yaw0);
+    assert!((turned - psi).abs() < 1e-9, "heading turned by {turned}");
+    assert_eq!(m.bias, b0);
+    for i in 0..N {
+        for j in 0..N {
+            assert!((m.cov[i][j] - m.cov[j][i]).abs() < 1e-12, "symmetric");
+        }
+    }
+}
