@@ -147,6 +147,10 @@ fn the_car_with_and_without_its_wheel_speeds() {
     // roll max, roll rms, pitch max, pitch rms
     assert!(speed[0] <= 1.5 && speed[2] <= 1.5, "with its wheel speeds: max roll {} pitch {}", speed[0], speed[2]);
     assert!(speed[3] < alone[3] && speed[2] < alone[2], "the wheel speeds did not help: {speed:?} vs {alone:?}");
-    // IMU only, ours keeps the roll better than VQF on the same samples
+    // IMU only, ours keeps the roll better than VQF on the same samples, and
+    // the pitch too: powered on at 8 m/s on a straight with no stop, the
+    // vertical-speed bound stops the pitch error from running into a wrong
+    // speed (without it: pitch RMS 6.1 deg against VQF's 3.7)
     assert!(alone[1] < vqf[1], "IMU only roll RMS {} vs VQF {}", alone[1], vqf[1]);
+    assert!(alone[3] < vqf[3], "IMU only pitch RMS {} vs VQF {}", alone[3], vqf[3]);
 }

@@ -334,6 +334,10 @@ pub struct MekfConfig {
     pub handheld_rate_dps: f64,
     /// 1-sigma of the vehicle constraint (sideslip, suspension), m/s. Default 0.3.
     pub nhc_sigma: f64,
+    /// A vehicle's largest vertical speed, m/s: no road has the car climb or
+    /// descend faster (7 % at 100 km/h). Beyond it the vertical velocity is
+    /// held to the bound (1-sigma 0.5 m/s); 0 turns the bound off. Default 2.
+    pub max_vertical_speed: f64,
     /// 1-sigma of the velocity of a unit that is not a vehicle, m/s. Default 1.0.
     pub free_velocity_sigma: f64,
     /// Not a vehicle: time constant of the navigation-frame low-pass of the
@@ -379,6 +383,7 @@ impl Default for MekfConfig {
             vehicle: AutoBool::Auto,
             handheld_rate_dps: 25.0,
             nhc_sigma: 0.3,
+            max_vertical_speed: 2.0,
             free_velocity_sigma: 1.0,
             accel_tau_s: 3.0,
             tilt_sigma_deg: 1.5,

@@ -147,6 +147,7 @@ impl Config {
         non_negative("mekf.gyro_scale_error", m.gyro_scale_error)?;
         positive("mekf.rest_tilt_sigma_deg", m.rest_tilt_sigma_deg)?;
         positive("mekf.nhc_sigma", m.nhc_sigma)?;
+        non_negative("mekf.max_vertical_speed", m.max_vertical_speed)?;
         positive("mekf.handheld_rate_dps", m.handheld_rate_dps)?;
         positive("mekf.free_velocity_sigma", m.free_velocity_sigma)?;
         positive("mekf.accel_tau_s", m.accel_tau_s)?;

@@ -239,6 +239,7 @@ pub fn mekf_params(cfg: &Config) -> MekfParams {
         q_accel: m.accel_noise * m.accel_noise,
         q_scale: m.scale_walk * m.scale_walk,
         nhc_var: m.nhc_sigma * m.nhc_sigma,
+        max_vertical_speed: m.max_vertical_speed,
         vehicle: match m.vehicle {
             crate::config::AutoBool::Auto => mekf::Vehicle::Auto,
             crate::config::AutoBool::Bool(true) => mekf::Vehicle::On,

@@ -28,6 +28,18 @@ impl Mekf {
             let u = self.update(&h, -nu, var, Gain { velocity: true, ..gain }, gate);
             note(u);
         }
+        // No road has a car climb or descend faster than `max_vertical_speed`:
+        // a vertical velocity beyond it is a pitch error integrated into a
+        // wrong speed (powered on while driving, IMU only, a straight road
+        // with no stop: nothing else tells them apart). Held to the bound,
+        // one-sided, never gated; a real grade a little beyond it costs a
+        // pitch error of the excess over the speed only.
+        let vmax = self.p.max_vertical_speed;
+        if self.vehicle && vmax > 0.0 && self.v[2].abs() > vmax {
+            let mut h = [0.0; N];
+            h[VE + 2] = 1.0;
+            let _ = self.update(&h, vmax.copysign(self.v[2]) - self.v[2], VERTICAL_BOUND_SIGMA * VERTICAL_BOUND_SIGMA, gain, f64::INFINITY);
+        }
         (fused, gated)
     }
 

@@ -84,6 +84,8 @@ const GAP_TURN_RATE: f64 = 30.0 * D2R;
 const GAP_VEHICLE_TILT: f64 = 5.0 * D2R;
 const GAP_SPEED_VAR: f64 = 4.0;
 const GAP_ACCEL: f64 = 3.0;
+/// 1-sigma of the vertical-speed bound (`max_vertical_speed`), m/s.
+const VERTICAL_BOUND_SIGMA: f64 = 0.5;
 
 /// Whether the magnetometer is used for heading.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -121,6 +123,8 @@ pub struct MekfParams {
     pub q_scale: f64,
     /// Ground-vehicle constraint variance (m/s)^2.
     pub nhc_var: f64,
+    /// A vehicle's largest vertical speed, m/s (0: no bound).
+    pub max_vertical_speed: f64,
     /// Whether the unit is in a ground vehicle.
     pub vehicle: Vehicle,
     /// `Vehicle::Auto`: the low-passed (1 s) RMS of the body x/y rates above

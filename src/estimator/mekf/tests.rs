@@ -203,3 +203,35 @@ fn turning_the_heading_turns_the_state_and_its_covariance_together() {
         }
     }
 }
+
+/// A vehicle's vertical velocity beyond `max_vertical_speed` is held to the
+/// bound, and the pitch with it (the car drives along its body x axis, so a
+/// vertical velocity is a pitch); within the bound nothing changes; 0 turns
+/// it off.
+#[test]
+fn a_vertical_speed_beyond_any_road_is_held_to_the_bound() {
+    let omega = [0.0, 0.0, 0.0];
+    // 16 m/s along the body x axis, pitched so that it descends at `vd`
+    let run = |vd: f64, bound: f64| {
+        let mut m = filter();
+        m.vehicle = true;
+        m.p.max_vertical_speed = bound;
+        m.q = quat::from_euler(0.0, -(vd / 16.0).asin(), 0.5);
+        m.c = quat::to_matrix(&m.q);
+        m.v = rotate(&m.c, &[16.0, 0.0, 0.0]);
+        m.dx = [0.0; N];
+        m.velocity_updates(&omega, true, m.p.gate);
+        m.inject();
+        m
+    };
+    for vd in [6.0, -6.0] {
+        let (off, on) = (run(vd, 0.0), run(vd, 2.0));
+        assert!((off.v[2] - vd).abs() < 1e-6, "without the bound the constraint is met: {}", off.v[2]);
+        assert!(on.v[2].abs() < vd.abs() - 1.0, "held: {} against {vd} without the bound", on.v[2]);
+        assert!(on.v[2].abs() > 2.0 - 3.0 * VERTICAL_BOUND_SIGMA, "not past the bound: {}", on.v[2]);
+        // the pitch moved towards level with it
+        assert!(on.euler()[1].abs() < off.euler()[1].abs() - 0.01, "pitch {} vs {}", on.euler()[1], off.euler()[1]);
+    }
+    let (a, b) = (run(1.5, 0.0), run(1.5, 2.0));
+    assert_eq!((a.v, a.q), (b.v, b.q), "within the bound nothing changes");
+}
