@@ -89,6 +89,10 @@ impl Mekf {
 
     /// Heading from the magnetometer. Some(fused) or None when disturbed.
     pub(super) fn heading_update(&mut self, m: &[f64; 3], at_rest: bool, learn: bool, gate: f64) -> Option<bool> {
+        if self.heading_open {
+            // the tick's corrections so far are in the frame a turn would leave
+            self.inject();
+        }
         let mn = rotate(&self.c, m);
         let nrm = norm(&mn);
         let h2 = mn[0] * mn[0] + mn[1] * mn[1];
@@ -131,11 +135,8 @@ impl Mekf {
         let nu = wrap_pi(psi - self.p.declination);
         if self.heading_open {
             // The car turned over a gap: take the field's heading whole, the
-            // velocity turning with it, then fuse it as usual. The tick's
-            // corrections so far are in the old frame: apply them first.
-            self.inject();
-            let mn = rotate(&self.c, m);
-            self.turn_heading(-wrap_pi(quat::atan2(mn[1], mn[0]) - self.p.declination));
+            // velocity turning with it, then fuse it as usual.
+            self.turn_heading(-nu);
             self.heading_open = false;
             return self.heading_update(m, at_rest, learn, gate);
         }

@@ -577,9 +577,8 @@ impl Mekf {
     /// (rad): attitude, velocity, the low-passed force, and the covariance of
     /// the navigation-frame errors. Nothing in the body frame changes.
     pub(super) fn turn_heading(&mut self, psi: f64) {
-        let (sn, cs) = psi.sin_cos();
-        let r = [[cs, -sn, 0.0], [sn, cs, 0.0], [0.0, 0.0, 1.0]];
         let dq = quat::from_rotvec(&[0.0, 0.0, psi]);
+        let r = quat::to_matrix(&dq);
         self.q = quat::mul(&dq, &self.q);
         quat::normalise(&mut self.q);
         self.c = quat::to_matrix(&self.q);
