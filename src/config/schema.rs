@@ -343,8 +343,15 @@ pub struct MekfConfig {
     /// Not a vehicle: time constant of the navigation-frame low-pass of the
     /// specific force whose direction is fused as gravity, s. Default 3.
     pub accel_tau_s: f64,
-    /// Not a vehicle: 1-sigma of that tilt measurement, deg. Default 1.5.
+    /// Not a vehicle: 1-sigma of that tilt measurement for a unit held
+    /// still or turned slowly, deg. Default 1.0.
     pub tilt_sigma_deg: f64,
+    /// Not a vehicle: the share of the unit's acceleration in the motion
+    /// band (periods of 0.3 to `accel_tau_s` s, RMS) taken to remain in the
+    /// low-pass; it adds to that tilt's 1-sigma in quadrature, so that a
+    /// unit moved back and forth is levelled loosely. 0 turns it off.
+    /// Default 0.2.
+    pub tilt_motion_share: f64,
     /// 1-sigma of the zero-velocity update at rest, m/s. Default 0.02.
     pub zupt_sigma: f64,
     /// Floor of the zero-rate update's 1-sigma at rest, deg/s (the measured
@@ -386,7 +393,8 @@ impl Default for MekfConfig {
             max_vertical_speed: 2.0,
             free_velocity_sigma: 1.0,
             accel_tau_s: 3.0,
-            tilt_sigma_deg: 1.5,
+            tilt_sigma_deg: 1.0,
+            tilt_motion_share: 0.2,
             zupt_sigma: 0.02,
             zru_sigma_dps: 0.005,
             speed_sigma: 0.1,

@@ -152,6 +152,7 @@ impl Config {
         positive("mekf.free_velocity_sigma", m.free_velocity_sigma)?;
         positive("mekf.accel_tau_s", m.accel_tau_s)?;
         positive("mekf.tilt_sigma_deg", m.tilt_sigma_deg)?;
+        non_negative("mekf.tilt_motion_share", m.tilt_motion_share)?;
         positive("mekf.zupt_sigma", m.zupt_sigma)?;
         positive("mekf.zru_sigma_dps", m.zru_sigma_dps)?;
         positive("mekf.speed_sigma", m.speed_sigma)?;
@@ -244,6 +245,7 @@ mod tests {
         assert!(bad("[mekf]\nupdate_hz = -1.0").contains("mekf.update_hz"));
         assert!(bad("[mekf]\ndwell_s = nan").contains("mekf.dwell_s"));
         assert!(bad("[mekf]\nnhc_sigma = inf").contains("mekf.nhc_sigma"));
+        assert!(bad("[mekf]\ntilt_motion_share = -0.1").contains("mekf.tilt_motion_share"));
         assert!(bad("[mekf]\nvehicle = 1").contains("vehicle"));
         assert!(bad("[mekf]\nvehicle = \"sometimes\"").contains("vehicle"));
         assert!(bad("[rest]\nmin_s = -1.0").contains("rest.min_s"));

@@ -249,6 +249,7 @@ pub fn mekf_params(cfg: &Config) -> MekfParams {
         free_var: m.free_velocity_sigma * m.free_velocity_sigma,
         accel_tau: m.accel_tau_s,
         lp_tilt_var: (m.tilt_sigma_deg * D2R).powi(2),
+        tilt_motion_share2: m.tilt_motion_share * m.tilt_motion_share,
         zupt_var: m.zupt_sigma * m.zupt_sigma,
         tilt_floor: (m.rest_tilt_sigma_deg * D2R).powi(2),
         zru_floor: (m.zru_sigma_dps * D2R).powi(2),

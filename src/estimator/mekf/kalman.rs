@@ -174,10 +174,9 @@ impl Mekf {
         }
         let dq = quat::from_rotvec(&[d[TH], d[TH + 1], d[TH + 2]]);
         self.q = quat::mul(&dq, &self.q);
-        if let Some(lp) = self.f_lp {
+        if let Some(lp) = self.f_lp.as_mut() {
             // the low-passed force was rotated with the old attitude
-            let r = quat::to_matrix(&dq);
-            self.f_lp = Some(rotate(&r, &lp));
+            lp.rotate(&quat::to_matrix(&dq));
         }
         quat::normalise(&mut self.q);
         self.c = quat::to_matrix(&self.q);

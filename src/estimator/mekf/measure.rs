@@ -19,7 +19,7 @@ impl Mekf {
         };
         let (axes, var): (&[usize], f64) = if self.vehicle { (&[1, 2], self.p.nhc_var) } else { (&[0, 1, 2], self.p.free_var) };
         if !self.vehicle {
-            for u in self.gravity_lp_update(self.p.lp_tilt_var, gain, gate) {
+            for u in self.gravity_lp_update(gain, gate) {
                 note(u);
             }
         }
@@ -43,9 +43,12 @@ impl Mekf {
         (fused, gated)
     }
 
-    /// The navigation-frame low-passed specific force as gravity (tilt only).
-    pub(super) fn gravity_lp_update(&mut self, var: f64, gain: Gain, gate: f64) -> [Upd; 2] {
-        let Some(f) = self.f_lp else { return [Upd::Skipped; 2] };
+    /// The navigation-frame low-passed specific force as gravity (tilt
+    /// only), held the more loosely the harder the unit is being moved.
+    pub(super) fn gravity_lp_update(&mut self, gain: Gain, gate: f64) -> [Upd; 2] {
+        let Some(g) = self.f_lp else { return [Upd::Skipped; 2] };
+        let f = g.lp;
+        let var = g.tilt_var(self.p.lp_tilt_var, self.p.tilt_motion_share2);
         let fnm = norm(&f);
         if fnm < 0.3 {
             return [Upd::Skipped; 2];

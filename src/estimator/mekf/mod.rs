@@ -39,9 +39,14 @@
 //! read it, or velocity constraints refused most of the time) restarts from
 //! the prior (flagged, counted).
 
+mod gap;
+mod gravity_lp;
 mod kalman;
 mod measure;
 mod tick;
+
+use gravity_lp::GravityLp;
+pub use gravity_lp::MOTION_BAND_TAU_S;
 
 use super::quat::{self, cross, norm, rotate, rotate_t, Mat3, Quat};
 use super::rest::{GravityRef, RestDetector, RestParams, RestState};
@@ -134,9 +139,12 @@ pub struct MekfParams {
     /// all axes when not a vehicle.
     pub free_var: f64,
     /// Not a vehicle: time constant of the navigation-frame low-pass of the
-    /// specific force (s) and the variance of the tilt it gives (rad^2).
+    /// specific force (s), the floor of the variance of the tilt it gives
+    /// (rad^2), and the share of the motion band's acceleration that adds
+    /// to it (squared; see `gravity_lp`).
     pub accel_tau: f64,
     pub lp_tilt_var: f64,
+    pub tilt_motion_share2: f64,
     pub zupt_var: f64,
     /// Floor of the at-rest tilt update's variance (accelerometer bias), rad^2.
     pub tilt_floor: f64,
@@ -242,8 +250,9 @@ pub struct Mekf {
     pub bias: [f64; 3],
     v: [f64; 3],
     scale: f64,
-    /// Low-passed specific force in the navigation frame, g (None until started).
-    f_lp: Option<[f64; 3]>,
+    /// Low-passed specific force in the navigation frame, g, and the
+    /// motion band's mean square (None until started).
+    f_lp: Option<GravityLp>,
     cov: [[f64; N]; N],
     dx: [f64; N],
     acc: Accum,
@@ -297,6 +306,7 @@ pub struct Mekf {
     /// Low-pass gains for the step length `alpha_dt`.
     alpha_dt: f64,
     alpha_acc: f64,
+    alpha_band: f64,
     alpha_1s: f64,
     /// The last tick's outcome, held until the next tick.
     mode: u8,
@@ -363,6 +373,7 @@ impl Mekf {
             bias_sigma_cache: [0.0; 3],
             alpha_dt: -1.0,
             alpha_acc: 0.0,
+            alpha_band: 0.0,
             alpha_1s: 0.0,
             mode: 2,
             tick_flags: 0,
@@ -510,107 +521,6 @@ impl Mekf {
         self.q.iter().all(|v| v.is_finite()) && self.bias.iter().all(|v| v.is_finite()) && self.v.iter().all(|v| v.is_finite())
     }
 
-    /// A counter gap of `gap_s` seconds (the gyro was not integrated across
-    /// it): widen what the unit may have done meanwhile, at most
-    /// `GAP_TURN_RATE` of turn (a quarter turn in all) and `GAP_ACCEL` of
-    /// change of speed.
-    ///
-    /// A unit that is not a vehicle may have turned any way: its attitude
-    /// opens on all three axes. A car drove on along its own x axis, its body
-    /// within a few degrees of its road: what it did over the gap is a turn
-    /// of the whole state (attitude and velocity together), which nothing in
-    /// the body frame sees, plus a change of speed along its x axis. So its
-    /// attitude opens by at most `GAP_VEHICLE_TILT`, the velocity's error is
-    /// the attitude's (`δv = -[v×] δθ`, fully correlated) plus the change of
-    /// speed, and the heading the car turned to is left to the magnetometer
-    /// (`heading_open`: its next heading turns attitude and velocity together,
-    /// exactly). Widening the attitude by the whole turn instead, the
-    /// velocity fixed in the navigation frame, made the first constraint
-    /// updates after the gap read the turn as roll, pitch and speed: 20-50
-    /// deg of error on simulated urban drives.
-    pub fn resync(&mut self, gap_s: f64) {
-        let gap = gap_s.max(0.0);
-        let att = (GAP_ATT_BASE + GAP_TURN_RATE * gap).min(std::f64::consts::FRAC_PI_2);
-        let speed_var = GAP_SPEED_VAR + (GAP_ACCEL * gap).powi(2);
-        if self.vehicle {
-            let a2 = att.min(GAP_VEHICLE_TILT).powi(2);
-            // V = -[v×]: the velocity's error for an attitude error
-            let v = self.v;
-            let vx = [[0.0, v[2], -v[1]], [-v[2], 0.0, v[0]], [v[1], -v[0], 0.0]];
-            let cx = [self.c[0][0], self.c[1][0], self.c[2][0]];
-            for i in 0..3 {
-                for j in 0..3 {
-                    // ΔP_vθ = V ΔP_θθ, ΔP_vv = V ΔP_θθ V^T + the speed along body x
-                    let pvt = vx[i][j] * a2;
-                    self.cov[VE + i][TH + j] += pvt;
-                    self.cov[TH + j][VE + i] += pvt;
-                    let pvv = (0..3).map(|k| vx[i][k] * vx[j][k]).sum::<f64>() * a2;
-                    self.cov[VE + i][VE + j] += pvv + speed_var * cx[i] * cx[j];
-                }
-                self.cov[TH + i][TH + i] += a2;
-            }
-            self.heading_open = true;
-            self.lever_pending = true;
-        } else {
-            for i in 0..3 {
-                self.cov[TH + i][TH + i] += att * att;
-                self.cov[VE + i][VE + i] += speed_var;
-            }
-        }
-        // the tick's means of the measurements are of after the gap only
-        // (its propagation sums stay: they are the motion before it)
-        let a = &mut self.acc;
-        a.n = 0;
-        a.gyro = [0.0; 3];
-        a.omega = [0.0; 3];
-        a.magn = [0.0; 3];
-        a.accel = [0.0; 3];
-        self.rest.reset();
-        self.switching.reset();
-        self.dwell = 0.0;
-        self.still_speed = None;
-        self.after_gap = true;
-        self.bias_sigma_cache = self.bias_sigma();
-    }
-
-    /// Turn the whole state about the navigation frame's down axis by `psi`
-    /// (rad): attitude, velocity, the low-passed force, and the covariance of
-    /// the navigation-frame errors. Nothing in the body frame changes.
-    pub(super) fn turn_heading(&mut self, psi: f64) {
-        let dq = quat::from_rotvec(&[0.0, 0.0, psi]);
-        let r = quat::to_matrix(&dq);
-        self.q = quat::mul(&dq, &self.q);
-        quat::normalise(&mut self.q);
-        self.c = quat::to_matrix(&self.q);
-        self.v = rotate(&r, &self.v);
-        if let Some(lp) = self.f_lp {
-            self.f_lp = Some(rotate(&r, &lp));
-        }
-        // T = blockdiag(R, I, R, 1): P' = T P T^T
-        let nav = |k: usize| k < 3 || (VE..VE + 3).contains(&k);
-        let mut m = self.cov;
-        for i in 0..N {
-            if !nav(i) {
-                continue;
-            }
-            let b = i - i % 3;
-            for j in 0..N {
-                m[i][j] = (0..3).map(|k| r[i - b][k] * self.cov[b + k][j]).sum();
-            }
-        }
-        let mut out = m;
-        for j in 0..N {
-            if !nav(j) {
-                continue;
-            }
-            let b = j - j % 3;
-            for i in 0..N {
-                out[i][j] = (0..3).map(|k| m[i][b + k] * r[j - b][k]).sum();
-            }
-        }
-        self.cov = out;
-    }
-
     /// One sample; returns (mode, flags, `|a| / g0` as the switching policy
     /// read it).
     pub fn step(&mut self, s: &StepIn) -> (u8, u16, f64) {
@@ -636,6 +546,7 @@ impl Mekf {
             // the low-pass gains, for this step length (constant but after gaps)
             self.alpha_dt = dt;
             self.alpha_acc = (dt / self.p.accel_tau).min(1.0);
+            self.alpha_band = (dt / MOTION_BAND_TAU_S).min(1.0);
             self.alpha_1s = dt.min(1.0);
         }
         if dt > 0.0 {
@@ -649,11 +560,10 @@ impl Mekf {
             }
             self.c = quat::to_matrix(&self.q);
             let f = rotate(&self.c, &s.accel);
-            let al = self.alpha_acc;
-            self.f_lp = Some(match self.f_lp {
-                None => f,
-                Some(lp) => [lp[0] + (f[0] - lp[0]) * al, lp[1] + (f[1] - lp[1]) * al, lp[2] + (f[2] - lp[2]) * al],
-            });
+            match self.f_lp.as_mut() {
+                None => self.f_lp = Some(GravityLp::new(&f)),
+                Some(lp) => lp.push(&f, self.alpha_acc, self.alpha_band),
+            }
             // v' = (C f + e_z) g0 G: g0 is the unit's reading of 1 g. At rest
             // this leaves g0 (1 - |f|) G, a few hundredths of m/s^2 that the
             // zero-velocity update absorbs. The alternatives (standard

@@ -1,0 +1,108 @@
+//! A silent bus: the counter gap's widening of what the unit may have done
+//! meanwhile (`resync`), and the exact turn of the whole state to the
+//! heading a car turned to over it (`turn_heading`).
+
+use super::*;
+
+impl Mekf {
+    /// A counter gap of `gap_s` seconds (the gyro was not integrated across
+    /// it): widen what the unit may have done meanwhile, at most
+    /// `GAP_TURN_RATE` of turn (a quarter turn in all) and `GAP_ACCEL` of
+    /// change of speed.
+    ///
+    /// A unit that is not a vehicle may have turned any way: its attitude
+    /// opens on all three axes. A car drove on along its own x axis, its body
+    /// within a few degrees of its road: what it did over the gap is a turn
+    /// of the whole state (attitude and velocity together), which nothing in
+    /// the body frame sees, plus a change of speed along its x axis. So its
+    /// attitude opens by at most `GAP_VEHICLE_TILT`, the velocity's error is
+    /// the attitude's (`δv = -[v×] δθ`, fully correlated) plus the change of
+    /// speed, and the heading the car turned to is left to the magnetometer
+    /// (`heading_open`: its next heading turns attitude and velocity together,
+    /// exactly). Widening the attitude by the whole turn instead, the
+    /// velocity fixed in the navigation frame, made the first constraint
+    /// updates after the gap read the turn as roll, pitch and speed: 20-50
+    /// deg of error on simulated urban drives.
+    pub fn resync(&mut self, gap_s: f64) {
+        let gap = gap_s.max(0.0);
+        let att = (GAP_ATT_BASE + GAP_TURN_RATE * gap).min(std::f64::consts::FRAC_PI_2);
+        let speed_var = GAP_SPEED_VAR + (GAP_ACCEL * gap).powi(2);
+        if self.vehicle {
+            let a2 = att.min(GAP_VEHICLE_TILT).powi(2);
+            // V = -[v×]: the velocity's error for an attitude error
+            let v = self.v;
+            let vx = [[0.0, v[2], -v[1]], [-v[2], 0.0, v[0]], [v[1], -v[0], 0.0]];
+            let cx = [self.c[0][0], self.c[1][0], self.c[2][0]];
+            for i in 0..3 {
+                for j in 0..3 {
+                    // ΔP_vθ = V ΔP_θθ, ΔP_vv = V ΔP_θθ V^T + the speed along body x
+                    let pvt = vx[i][j] * a2;
+                    self.cov[VE + i][TH + j] += pvt;
+                    self.cov[TH + j][VE + i] += pvt;
+                    let pvv = (0..3).map(|k| vx[i][k] * vx[j][k]).sum::<f64>() * a2;
+                    self.cov[VE + i][VE + j] += pvv + speed_var * cx[i] * cx[j];
+                }
+                self.cov[TH + i][TH + i] += a2;
+            }
+            self.heading_open = true;
+            self.lever_pending = true;
+        } else {
+            for i in 0..3 {
+                self.cov[TH + i][TH + i] += att * att;
+                self.cov[VE + i][VE + i] += speed_var;
+            }
+        }
+        // the tick's means of the measurements are of after the gap only
+        // (its propagation sums stay: they are the motion before it)
+        let a = &mut self.acc;
+        a.n = 0;
+        a.gyro = [0.0; 3];
+        a.omega = [0.0; 3];
+        a.magn = [0.0; 3];
+        a.accel = [0.0; 3];
+        self.rest.reset();
+        self.switching.reset();
+        self.dwell = 0.0;
+        self.still_speed = None;
+        self.after_gap = true;
+        self.bias_sigma_cache = self.bias_sigma();
+    }
+
+    /// Turn the whole state about the navigation frame's down axis by `psi`
+    /// (rad): attitude, velocity, the low-passed force, and the covariance of
+    /// the navigation-frame errors. Nothing in the body frame changes.
+    pub(super) fn turn_heading(&mut self, psi: f64) {
+        let dq = quat::from_rotvec(&[0.0, 0.0, psi]);
+        let r = quat::to_matrix(&dq);
+        self.q = quat::mul(&dq, &self.q);
+        quat::normalise(&mut self.q);
+        self.c = quat::to_matrix(&self.q);
+        self.v = rotate(&r, &self.v);
+        if let Some(lp) = self.f_lp.as_mut() {
+            lp.rotate(&r);
+        }
+        // T = blockdiag(R, I, R, 1): P' = T P T^T
+        let nav = |k: usize| k < 3 || (VE..VE + 3).contains(&k);
+        let mut m = self.cov;
+        for i in 0..N {
+            if !nav(i) {
+                continue;
+            }
+            let b = i - i % 3;
+            for j in 0..N {
+                m[i][j] = (0..3).map(|k| r[i - b][k] * self.cov[b + k][j]).sum();
+            }
+        }
+        let mut out = m;
+        for j in 0..N {
+            if !nav(j) {
+                continue;
+            }
+            let b = j - j % 3;
+            for i in 0..N {
+                out[i][j] = (0..3).map(|k| m[i][b + k] * r[j - b][k]).sum();
+            }
+        }
+        self.cov = out;
+    }
+}
