@@ -45,8 +45,7 @@ mod kalman;
 mod measure;
 mod tick;
 
-use gravity_lp::GravityLp;
-pub use gravity_lp::MOTION_BAND_TAU_S;
+use gravity_lp::{GravityLp, MOTION_BAND_TAU_S};
 
 use super::quat::{self, cross, norm, rotate, rotate_t, Mat3, Quat};
 use super::rest::{GravityRef, RestDetector, RestParams, RestState};
