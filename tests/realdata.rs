@@ -81,7 +81,11 @@ fn realdata_table_ours_and_vqf() {
             let (rm, pm) = (u["roll"]["max"].as_f64().unwrap(), u["pitch"]["max"].as_f64().unwrap());
             assert!(rm < 10.0 && pm < 10.0, "{name}: ours diverged, max roll {rm} pitch {pm}");
             let (ut, vt) = (u["tilt_rms"].as_f64().unwrap(), v["tilt_rms"].as_f64().unwrap());
-            assert!(ut < 1.3 * vt, "{name}: ours tilt RMS {ut} against VQF's {vt}");
+            // 5 %: a hand-held unit levelled through the Butterworth and
+            // learning its gyro's error in motion is within 0.3 % of VQF's
+            // tilt or below it on every BROAD recording (broad-14 was 16 %
+            // above it before)
+            assert!(ut < 1.05 * vt, "{name}: ours tilt RMS {ut} against VQF's {vt}");
         }
     }
 }

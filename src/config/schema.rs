@@ -344,14 +344,22 @@ pub struct MekfConfig {
     /// specific force whose direction is fused as gravity, s. Default 3.
     pub accel_tau_s: f64,
     /// Not a vehicle: 1-sigma of that tilt measurement for a unit held
-    /// still or turned slowly, deg. Default 1.0.
+    /// still or turned slowly, deg. Default 0.2.
     pub tilt_sigma_deg: f64,
     /// Not a vehicle: the share of the unit's acceleration in the motion
     /// band (periods of 0.3 to `accel_tau_s` s, RMS) taken to remain in the
     /// low-pass; it adds to that tilt's 1-sigma in quadrature, so that a
     /// unit moved back and forth is levelled loosely. 0 turns it off.
-    /// Default 0.2.
+    /// Default 0.03.
     pub tilt_motion_share: f64,
+    /// Not a vehicle: random walk of the gyro bias while the unit moves,
+    /// deg/s/sqrt(s). A hand-held MEMS gyro's error in motion is not its
+    /// bias at rest (on the BROAD recordings the gyro alone drifts by about
+    /// 1 deg over each 20-30 s of motion and comes back to its rest bias at
+    /// the next rest); the bias is then learned in motion too, from the
+    /// low-passed gravity, with this walk. 0: the paper's policy (the bias
+    /// is learned only when the data say quasi-static). Default 0.005.
+    pub motion_bias_walk: f64,
     /// 1-sigma of the zero-velocity update at rest, m/s. Default 0.02.
     pub zupt_sigma: f64,
     /// Floor of the zero-rate update's 1-sigma at rest, deg/s (the measured
@@ -393,8 +401,9 @@ impl Default for MekfConfig {
             max_vertical_speed: 2.0,
             free_velocity_sigma: 1.0,
             accel_tau_s: 3.0,
-            tilt_sigma_deg: 1.0,
-            tilt_motion_share: 0.2,
+            tilt_sigma_deg: 0.2,
+            tilt_motion_share: 0.03,
+            motion_bias_walk: 0.005,
             zupt_sigma: 0.02,
             zru_sigma_dps: 0.005,
             speed_sigma: 0.1,

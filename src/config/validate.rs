@@ -153,6 +153,7 @@ impl Config {
         positive("mekf.accel_tau_s", m.accel_tau_s)?;
         positive("mekf.tilt_sigma_deg", m.tilt_sigma_deg)?;
         non_negative("mekf.tilt_motion_share", m.tilt_motion_share)?;
+        non_negative("mekf.motion_bias_walk", m.motion_bias_walk)?;
         positive("mekf.zupt_sigma", m.zupt_sigma)?;
         positive("mekf.zru_sigma_dps", m.zru_sigma_dps)?;
         positive("mekf.speed_sigma", m.speed_sigma)?;
@@ -246,6 +247,7 @@ mod tests {
         assert!(bad("[mekf]\ndwell_s = nan").contains("mekf.dwell_s"));
         assert!(bad("[mekf]\nnhc_sigma = inf").contains("mekf.nhc_sigma"));
         assert!(bad("[mekf]\ntilt_motion_share = -0.1").contains("mekf.tilt_motion_share"));
+        assert!(bad("[mekf]\nmotion_bias_walk = -0.001").contains("mekf.motion_bias_walk"));
         assert!(bad("[mekf]\nvehicle = 1").contains("vehicle"));
         assert!(bad("[mekf]\nvehicle = \"sometimes\"").contains("vehicle"));
         assert!(bad("[rest]\nmin_s = -1.0").contains("rest.min_s"));

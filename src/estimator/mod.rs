@@ -236,6 +236,7 @@ pub fn mekf_params(cfg: &Config) -> MekfParams {
         q_gyro: (k.gyro_noise * D2R).powi(2),
         gyro_scale: m.gyro_scale_error,
         q_bias: (k.bias_walk * D2R).powi(2),
+        q_bias_motion: (m.motion_bias_walk * D2R).powi(2),
         q_accel: m.accel_noise * m.accel_noise,
         q_scale: m.scale_walk * m.scale_walk,
         nhc_var: m.nhc_sigma * m.nhc_sigma,

@@ -10,14 +10,15 @@ impl Mekf {
     #[cfg(test)]
     pub(super) fn propagate_noiseless(&mut self) {
         let a = self.acc.clone();
-        let saved = (self.p.q_gyro, self.p.q_bias, self.p.q_accel, self.p.q_scale, self.p.gyro_scale);
+        let saved = (self.p.q_gyro, self.p.q_bias, self.p.q_accel, self.p.q_scale, self.p.gyro_scale, self.p.q_bias_motion);
         self.p.q_gyro = 0.0;
         self.p.q_bias = 0.0;
+        self.p.q_bias_motion = 0.0;
         self.p.q_accel = 0.0;
         self.p.q_scale = 0.0;
         self.p.gyro_scale = 0.0;
         self.propagate(&a);
-        (self.p.q_gyro, self.p.q_bias, self.p.q_accel, self.p.q_scale, self.p.gyro_scale) = saved;
+        (self.p.q_gyro, self.p.q_bias, self.p.q_accel, self.p.q_scale, self.p.gyro_scale, self.p.q_bias_motion) = saved;
     }
 
     /// `P = Φ P Φ^T + Q` with `Φ = [[I, A, 0, 0], [0, I, 0, 0], [B, D, I, 0], [0, 0, 0, 1]]`,
@@ -38,40 +39,44 @@ impl Mekf {
                 dm[i][j] = 0.5 * (bm[i][0] * am[0][j] + bm[i][1] * am[1][j] + bm[i][2] * am[2][j]);
             }
         }
+        let q_bias = if self.learns_in_motion() && !a.rest { self.p.q_bias.max(self.p.q_bias_motion) } else { self.p.q_bias };
+        // In place: M = Φ P changes the θ and v rows only, and the v rows
+        // read the θ rows before these change; P' = M Φ^T likewise by columns.
         let p = &mut self.cov;
-        // M = Φ P (rows): θ rows += A P_b·; v rows += B P_θ· + D P_b·
-        let mut m = *p;
-        for i in 0..3 {
-            for k in 0..N {
-                let mut sth = 0.0;
-                let mut sv = 0.0;
-                for j in 0..3 {
-                    sth += am[i][j] * p[BI + j][k];
-                    sv += bm[i][j] * p[TH + j][k] + dm[i][j] * p[BI + j][k];
-                }
-                m[TH + i][k] += sth;
-                m[VE + i][k] += sv;
-            }
-        }
-        // P' = M Φ^T (columns): θ cols += M_·b A^T; v cols += M_·θ B^T + M_·b D^T
-        let mut out = m;
         for k in 0..N {
+            // M = Φ P (rows): v rows += B P_θ· + D P_b·, then θ rows += A P_b·
+            let (pt, pb) = ([p[TH][k], p[TH + 1][k], p[TH + 2][k]], [p[BI][k], p[BI + 1][k], p[BI + 2][k]]);
             for i in 0..3 {
-                let mut sth = 0.0;
                 let mut sv = 0.0;
+                let mut sth = 0.0;
                 for j in 0..3 {
-                    sth += m[k][BI + j] * am[i][j];
-                    sv += m[k][TH + j] * bm[i][j] + m[k][BI + j] * dm[i][j];
+                    sv += bm[i][j] * pt[j] + dm[i][j] * pb[j];
+                    sth += am[i][j] * pb[j];
                 }
-                out[k][TH + i] += sth;
-                out[k][VE + i] += sv;
+                p[VE + i][k] += sv;
+                p[TH + i][k] += sth;
             }
         }
+        for row in p.iter_mut() {
+            // P' = M Φ^T (columns): v cols += M_·θ B^T + M_·b D^T, then θ cols += M_·b A^T
+            let (mt, mb) = ([row[TH], row[TH + 1], row[TH + 2]], [row[BI], row[BI + 1], row[BI + 2]]);
+            for i in 0..3 {
+                let mut sv = 0.0;
+                let mut sth = 0.0;
+                for j in 0..3 {
+                    sv += mt[j] * bm[i][j] + mb[j] * dm[i][j];
+                    sth += mb[j] * am[i][j];
+                }
+                row[VE + i] += sv;
+                row[TH + i] += sth;
+            }
+        }
+        let out = p;
         let t = a.t;
         let turned = self.p.gyro_scale * a.turned;
         for i in 0..3 {
             out[TH + i][TH + i] += self.p.q_gyro * t + turned * turned;
-            out[BI + i][BI + i] += self.p.q_bias * t;
+            out[BI + i][BI + i] += q_bias * t;
             out[VE + i][VE + i] += self.p.q_accel * t;
         }
         if self.p.speed_aided {
@@ -85,7 +90,6 @@ impl Mekf {
                 out[j][i] = v;
             }
         }
-        *p = out;
     }
 
     /// One scalar update `nu = h dx + noise(r)`, gated; the gain rows of the
@@ -103,13 +107,14 @@ impl Mekf {
         }
         let nz = &nz[..n];
         let p = &self.cov;
+        // u = P h, as a sum of the rows of the (exactly symmetric) P:
+        // contiguous, and the same sums in the same order as by columns
         let mut u = [0.0; N];
-        for i in 0..N {
-            let mut s = 0.0;
-            for &j in nz {
-                s += p[i][j] * h[j];
+        for &j in nz {
+            let (hj, row) = (h[j], &p[j]);
+            for i in 0..N {
+                u[i] += row[i] * hj;
             }
-            u[i] = s;
         }
         let mut s = r;
         let mut hdx = 0.0;

@@ -47,7 +47,7 @@ impl Mekf {
     /// only), held the more loosely the harder the unit is being moved.
     pub(super) fn gravity_lp_update(&mut self, gain: Gain, gate: f64) -> [Upd; 2] {
         let Some(g) = self.f_lp else { return [Upd::Skipped; 2] };
-        let f = g.lp;
+        let f = g.gravity;
         let var = g.tilt_var(self.p.lp_tilt_var, self.p.tilt_motion_share2);
         let fnm = norm(&f);
         if fnm < 0.3 {

@@ -45,7 +45,7 @@ mod kalman;
 mod measure;
 mod tick;
 
-use gravity_lp::{GravityLp, MOTION_BAND_TAU_S};
+use gravity_lp::{GravityLp, LpGains};
 
 use super::quat::{self, cross, norm, rotate, rotate_t, Mat3, Quat};
 use super::rest::{GravityRef, RestDetector, RestParams, RestState};
@@ -123,6 +123,9 @@ pub struct MekfParams {
     /// variance grows by (this x rotation angle)^2.
     pub gyro_scale: f64,
     pub q_bias: f64,
+    /// Not a vehicle, moving: the bias walk (rad/s)^2/s; 0 = the bias is
+    /// learned in motion only when quasi-static (see `MekfConfig`).
+    pub q_bias_motion: f64,
     pub q_accel: f64,
     pub q_scale: f64,
     /// Ground-vehicle constraint variance (m/s)^2.
@@ -304,8 +307,7 @@ pub struct Mekf {
     bias_sigma_cache: [f64; 3],
     /// Low-pass gains for the step length `alpha_dt`.
     alpha_dt: f64,
-    alpha_acc: f64,
-    alpha_band: f64,
+    lp_gains: LpGains,
     alpha_1s: f64,
     /// The last tick's outcome, held until the next tick.
     mode: u8,
@@ -371,8 +373,7 @@ impl Mekf {
             refused_share: 0.0,
             bias_sigma_cache: [0.0; 3],
             alpha_dt: -1.0,
-            alpha_acc: 0.0,
-            alpha_band: 0.0,
+            lp_gains: LpGains::new(1.0, 1.0),
             alpha_1s: 0.0,
             mode: 2,
             tick_flags: 0,
@@ -544,8 +545,7 @@ impl Mekf {
         if dt != self.alpha_dt {
             // the low-pass gains, for this step length (constant but after gaps)
             self.alpha_dt = dt;
-            self.alpha_acc = (dt / self.p.accel_tau).min(1.0);
-            self.alpha_band = (dt / MOTION_BAND_TAU_S).min(1.0);
+            self.lp_gains = LpGains::new(dt, self.p.accel_tau);
             self.alpha_1s = dt.min(1.0);
         }
         if dt > 0.0 {
@@ -560,8 +560,8 @@ impl Mekf {
             self.c = quat::to_matrix(&self.q);
             let f = rotate(&self.c, &s.accel);
             match self.f_lp.as_mut() {
-                None => self.f_lp = Some(GravityLp::new(&f)),
-                Some(lp) => lp.push(&f, self.alpha_acc, self.alpha_band),
+                None => self.f_lp = Some(GravityLp::new(&f, &self.lp_gains)),
+                Some(lp) => lp.push(&f, &self.lp_gains),
             }
             // v' = (C f + e_z) g0 G: g0 is the unit's reading of 1 g. At rest
             // this leaves g0 (1 - |f|) G, a few hundredths of m/s^2 that the
@@ -708,6 +708,13 @@ impl Mekf {
         self.nhc_refused = 0.0;
         self.refused_share = 0.0;
         self.counters.restarts += 1;
+    }
+
+    /// A unit that is not a vehicle, with a motion walk configured: it
+    /// learns its bias from the low-passed gravity while it moves.
+    #[inline]
+    pub(super) fn learns_in_motion(&self) -> bool {
+        !self.vehicle && self.p.q_bias_motion > 0.0
     }
 
     fn bias_deg(&self) -> [f64; 3] {

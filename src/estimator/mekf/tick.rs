@@ -59,7 +59,10 @@ impl Mekf {
         // of several deg/s must not wait for a stop that may never come).
         // What holds under any acceleration (standstill, the vehicle
         // constraint, the wheel speed, the magnetic heading) always does.
-        let learn_gravity = (a.quasi || !self.bias_known) && !a.suspect;
+        // A unit that is not a vehicle learns it in motion too, with its
+        // motion walk (`q_bias_motion`): its gyro's error in motion is not
+        // its bias at rest.
+        let learn_gravity = (a.quasi || !self.bias_known || self.learns_in_motion()) && !a.suspect;
         let learn = !a.suspect;
         if still {
             if at_rest {
