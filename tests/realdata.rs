@@ -158,3 +158,101 @@ fn the_car_with_and_without_its_wheel_speeds() {
     assert!(alone[1] < vqf[1], "IMU only roll RMS {} vs VQF {}", alone[1], vqf[1]);
     assert!(alone[3] < vqf[3], "IMU only pitch RMS {} vs VQF {}", alone[3], vqf[3]);
 }
+
+/// Why a free unit learns its bias in motion (docs/estimator.md, "A free
+/// unit's gyro in motion"): on broad-14 the gyro alone, started from the
+/// reference at the end of each rest with that rest's mean gyro as its
+/// bias, is off by far more at the next rest than that bias's uncertainty
+/// explains. Prints the error per motion phase.
+#[test]
+fn the_hand_held_gyro_alone_drifts_between_rests() {
+    use gyrocomp::config::Config;
+    use gyrocomp::reference::realdata::evaluate_recording;
+    use gyrocomp::reference::refcsv::read_reference;
+    use gyrocomp::reference::score::sample_times;
+    use gyrocomp::reference::RefOptions;
+    use nalgebra::{UnitQuaternion, Vector3};
+    let Some(dir) = realdata_dir() else {
+        println!("skipped: ../shared/realdata not found (set GYROCOMP_REALDATA to the folder of recordings)");
+        return;
+    };
+    let rec = dir.join("broad-14-slow-translation");
+    if !rec.is_dir() {
+        println!("skipped: {} not found", rec.display());
+        return;
+    }
+    let r = evaluate_recording(&rec, &Config::default(), &RefOptions::default()).unwrap();
+    let d = gyrocomp::reference::decode(&r.log[..], &r.config, "broad-14").unwrap();
+    let period = r.eval.period;
+    let ts = sample_times(&d.samples, period);
+    let reference = read_reference(&rec.join("reference.csv.gz")).unwrap();
+    let att = reference.at_times(&ts, 0.0);
+    // the reference's rest flag at each sample (rows and samples share the clock)
+    let mut j = 0;
+    let rest: Vec<bool> = ts
+        .iter()
+        .map(|&t| {
+            while j + 1 < reference.rows.len() && reference.rows[j + 1].t <= t + 1e-6 {
+                j += 1;
+            }
+            reference.rows[j].rest
+        })
+        .collect();
+    // rest phases of at least 3 s
+    let n3 = (3.0 / period) as usize;
+    let mut phases = Vec::new();
+    let mut k = 0;
+    while k < rest.len() {
+        let s = k;
+        while k < rest.len() && rest[k] {
+            k += 1;
+        }
+        if k - s >= n3 {
+            phases.push((s, k));
+        }
+        k += 1;
+    }
+    assert!(phases.len() >= 5, "{} rest phases", phases.len());
+    let d2r = std::f64::consts::PI / 180.0;
+    let mut errors = Vec::new();
+    for w in phases.windows(2) {
+        let ((_, end), (next, _)) = (w[0], w[1]);
+        let mean = |a: usize, b: usize| {
+            let n = (b - a) as f64;
+            (0..3).map(|i| d.samples[a..b].iter().map(|s| s.gyro[i]).sum::<f64>() / n).collect::<Vec<f64>>()
+        };
+        let bias = mean(end - n3, end);
+        // 1-sigma of that bias: the gyro's scatter over the 3 s / sqrt(samples)
+        let sd = (0..3)
+            .map(|i| {
+                let v = d.samples[end - n3..end].iter().map(|s| (s.gyro[i] - bias[i]).powi(2)).sum::<f64>() / n3 as f64;
+                (v / n3 as f64).sqrt()
+            })
+            .fold(0.0f64, f64::max);
+        let stop = next + (0.5 / period) as usize;
+        let (Some(mut q), Some(q_ref)) = (att[end - 1], att[stop]) else {
+            continue;
+        };
+        for s in &d.samples[end..stop] {
+            let w = Vector3::new(s.gyro[0] - bias[0], s.gyro[1] - bias[1], s.gyro[2] - bias[2]) * (d2r * period);
+            q *= UnitQuaternion::from_scaled_axis(w);
+        }
+        let e = (q_ref.inverse() * q).scaled_axis() / d2r;
+        let moving_s = (next - end) as f64 * period;
+        // 3 sigma of what the rest's bias uncertainty alone would leave
+        let bound = 3.0 * sd * (moving_s + 0.5);
+        println!(
+            "motion {:5.1}-{:5.1} s: the gyro alone is off by x {:+.2} y {:+.2} z {:+.2} deg at the next rest (3 sigma of the rest bias: {bound:.3} deg)",
+            ts[end],
+            ts[next],
+            e.x,
+            e.y,
+            e.z
+        );
+        errors.push((e.x.hypot(e.y), bound));
+    }
+    // in tilt (x, y), every phase but at most one is beyond what the rest
+    // bias's uncertainty explains
+    let beyond = errors.iter().filter(|(e, b)| e > b).count();
+    assert!(errors.len() >= 4 && beyond + 1 >= errors.len(), "{errors:?}");
+}
