@@ -79,6 +79,12 @@ const LOST_TAU_S: f64 = 5.0;
 /// moving one, whatever the IMU looks like.
 const WHEEL_STANDING: f64 = 0.05;
 const WHEEL_MOVING: f64 = 0.3;
+/// The wheels must have read standing this long (s) before a quiet IMU is
+/// a standstill without the detector's `min_s`: in the last tenths of a
+/// second of a stop the wheels (20-80 ms late) read under `WHEEL_STANDING`
+/// while the car still decelerates at 0.05 g, whose |f| is within the rest
+/// band of gravity (3 deg of pitch taken for tilt).
+const WHEEL_STANDING_S: f64 = 0.5;
 /// A counter gap (`resync`): what the unit may have done over it. The
 /// attitude opens by `GAP_ATT_BASE` plus `GAP_TURN_RATE` per second of gap
 /// (at most a quarter turn), a vehicle's tilt by at most `GAP_VEHICLE_TILT`;
@@ -286,6 +292,8 @@ pub struct Mekf {
     /// Seconds still with an update refused; seconds in motion with the
     /// velocity constraints refused.
     refused_still: f64,
+    /// Seconds the wheels have read standing.
+    wheel_standing_s: f64,
     nhc_refused: f64,
     /// Speed and its sigma when the unit became still (m/s).
     still_speed: Option<(f64, f64)>,
@@ -358,6 +366,7 @@ impl Mekf {
             mag_disturbed: false,
             mag_dist_s: 0.0,
             refused_still: 0.0,
+            wheel_standing_s: 0.0,
             nhc_refused: 0.0,
             still_speed: None,
             after_gap: false,
