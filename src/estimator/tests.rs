@@ -801,11 +801,11 @@ fn eased_into_a_stop() -> (f64, f64) {
 
 #[test]
 fn mekf_a_car_easing_into_a_stop_is_not_standing_until_its_wheels_have_stood() {
-    // Below 0.3 m/s the late wheels no longer say "moving", and a steady
-    // 0.05 g deceleration (|f| = 1.0012 g, inside the rest band, no
-    // rotation) looks like rest to the IMU: it was flagged standing 0.5 s
-    // before the car stopped (zero velocity and gravity = 2.9 deg of pitch
-    // offered to the filter; the gate refused the tilt).
+    // A steady 0.05 g deceleration (|f| = 1.0012 g, inside the rest band,
+    // no rotation) looks like rest to the IMU. When only wheels above 0.3
+    // m/s vetoed it, the car was flagged standing 0.5 s before it stopped
+    // (zero velocity and gravity = 2.9 deg of pitch offered to the filter;
+    // the gate refused the tilt).
     let (false_still, worst) = eased_into_a_stop();
     println!("easing into a stop: standing while moving {false_still:.2} s, worst pitch error {worst:.3} deg");
     assert!(false_still == 0.0, "flagged standing for {false_still:.2} s while moving");

@@ -75,10 +75,9 @@ const HEADING_REACQUIRE_S: f64 = 5.0;
 /// attitude, not the vehicle, is wrong): it restarts from its prior.
 const LOST_SHARE: f64 = 0.8;
 const LOST_TAU_S: f64 = 5.0;
-/// Wheel speeds below this (m/s) are a standing car; above `WHEEL_MOVING` a
-/// moving one, whatever the IMU looks like.
+/// Wheel speeds below this (m/s) are a standing car; with wheel speeds a
+/// car is never still while its wheels read more.
 const WHEEL_STANDING: f64 = 0.05;
-const WHEEL_MOVING: f64 = 0.3;
 /// The wheels must have read standing this long (s) before a quiet IMU is
 /// a standstill without the detector's `min_s`: in the last tenths of a
 /// second of a stop the wheels (20-80 ms late) read under `WHEEL_STANDING`

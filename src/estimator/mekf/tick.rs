@@ -25,14 +25,13 @@ impl Mekf {
         // wheels is a standstill without waiting for the detector's time.
         let wheel = if self.p.speed_aided { self.speed } else { None };
         let wheel_standing = wheel.is_some_and(|v| v.abs() < WHEEL_STANDING);
-        let wheel_moving = wheel.is_some_and(|v| v.abs() > WHEEL_MOVING);
         self.wheel_standing_s = if wheel_standing { self.wheel_standing_s + t } else { 0.0 };
         let wheels_stood = self.wheel_standing_s >= WHEEL_STANDING_S;
         // With wheel speeds the wheels decide that the car stands; the IMU
         // only that it is quiet (a steady 0.05 g deceleration looks like rest
         // to an IMU alone)
         let imu_still = if wheel.is_some() { wheels_stood && (a.rest || a.quiet) } else { a.rest };
-        let still = imu_still && !a.suspect && !wheel_moving;
+        let still = imu_still && !a.suspect;
         // A steady signal at a speed the filter is sure of is a smooth
         // cruise, not a standstill: the gyro still reads the bias on a
         // straight and gravity is still gravity, but the velocity is not zero.
