@@ -86,9 +86,11 @@ fn close(got: f64, want: f64, what: &str) {
     assert!((got - want).abs() <= 0.02 + 0.05 * want.abs(), "{what}: {got} vs truth {want}");
 }
 
+/// `gyrocomp evaluate --reference ... --align-s S` (S given: without a rest
+/// phase the mount is taken from the first S seconds whatever they hold).
 fn eval(cfg: &Config, samples: &[gyrocomp::adis::Sample], refp: &Path, align_s: f64) -> Evaluation {
     let r = read_reference(refp).unwrap();
-    evaluate_samples(samples, cfg, &r, &RefOptions { skip: 10.0, align_s, peers: true, ..Default::default() }).unwrap()
+    evaluate_samples(samples, cfg, &r, &RefOptions { skip: 10.0, align_s, force_align: true, peers: true, ..Default::default() }).unwrap()
 }
 
 #[test]
@@ -167,7 +169,7 @@ fn gaps_are_not_scored_and_without_rest_the_first_seconds_align() {
     let shifted = d.path().join("shifted.csv");
     write_ref(&shifted, &rows.iter().map(|(t, a)| (t + 1000.0, *a)).collect::<Vec<_>>(), false, &|_| false, "");
     let r = read_reference(&shifted).unwrap();
-    let o = RefOptions { skip: 10.0, align_s: 3.0, offset: 1000.0, peers: true };
+    let o = RefOptions { skip: 10.0, align_s: 3.0, offset: 1000.0, force_align: true, peers: true };
     let ev_shift = evaluate_samples(&samples, &cfg, &r, &o).unwrap();
     for (x, y) in ev_shift.results.iter().zip(&ev_full.results) {
         let (a, b) = (&x.scores, &y.scores);
@@ -193,6 +195,33 @@ fn gaps_are_not_scored_and_without_rest_the_first_seconds_align() {
             assert!(e.tilt.is_nan() && e.roll.is_nan());
         }
     }
+}
+
+#[test]
+fn without_rest_and_with_motion_in_the_first_seconds_no_mount_is_taken_unless_asked() {
+    // No rest column, and the car pulls away within the first 5 s: a mount
+    // taken from them would hold the pull-away. By default none is taken
+    // (the same scores as --align-s 0), and the reason is given; --align-s 5
+    // takes it anyway.
+    let d = tempfile::tempdir().unwrap();
+    let (cfg, samples, truth) = sim(&d.path().join("run"));
+    let plain = d.path().join("plain.csv");
+    write_ref(&plain, &reference_rows(&truth), false, &|_| false, "");
+    let r = read_reference(&plain).unwrap();
+    let def = evaluate_samples(&samples, &cfg, &r, &RefOptions { peers: true, ..Default::default() }).unwrap();
+    let a = &def.alignment;
+    println!("default: {}", a.window.source);
+    assert!(!a.window.estimate_mount && a.window.refused_in_motion && a.tilt_deg == 0.0, "{a:?}");
+    assert!(a.window.source.contains("do not look like rest") && a.window.source.contains("--align-s 5"), "{}", a.window.source);
+    assert!(def.rest_warning("run").unwrap().contains("no mount"));
+    let none = eval(&cfg, &samples, &plain, 0.0);
+    for (x, y) in def.results.iter().zip(&none.results) {
+        assert_eq!((x.scores.roll, x.scores.pitch, x.scores.tilt_rms), (y.scores.roll, y.scores.pitch, y.scores.tilt_rms), "{}", x.name);
+    }
+    let forced = eval(&cfg, &samples, &plain, 5.0);
+    let f = &forced.alignment;
+    assert!(f.window.estimate_mount && !f.looks_at_rest && f.tilt_deg > 0.0, "{f:?}");
+    assert!(forced.rest_warning("run").unwrap().contains("does not look like rest"));
 }
 
 fn run(args: &[&str]) -> std::process::Output {

@@ -56,9 +56,11 @@ pub struct ReferenceArgs {
     #[arg(long, value_name = "S", default_value_t = 0.0, allow_hyphen_values = true)]
     pub offset: f64,
     /// Without a rest phase in the reference: estimate the mount over the
-    /// first S seconds (0: no mount), s.
-    #[arg(long, value_name = "S", default_value_t = 5.0)]
-    pub align_s: f64,
+    /// first S seconds (0: no mount), s. Default: the first 5 s, and only if
+    /// they look like rest (else no mount: a mount taken in motion holds the
+    /// motion). Given, the mount is taken from them whatever they look like.
+    #[arg(long, value_name = "S")]
+    pub align_s: Option<f64>,
 }
 
 impl ReferenceArgs {
@@ -74,12 +76,15 @@ pub struct RefOptions {
     pub skip: f64,
     pub offset: f64,
     pub align_s: f64,
+    /// Take the mount from the first `align_s` seconds (no rest phase) even
+    /// when they do not look like rest (`--align-s` given).
+    pub force_align: bool,
     pub peers: bool,
 }
 
 impl Default for RefOptions {
     fn default() -> Self {
-        RefOptions { skip: 10.0, offset: 0.0, align_s: 5.0, peers: false }
+        RefOptions { skip: 10.0, offset: 0.0, align_s: 5.0, force_align: false, peers: false }
     }
 }
 
@@ -190,7 +195,24 @@ pub fn evaluate_with(samples: &[Sample], ours: Ours, cfg: &Config, r: &Reference
     let ts = sample_times(samples, period);
     let refq = r.at_times(&ts, o.offset);
     let w = alignment_window(r, o.align_s, o.offset)?;
-    let a = align(samples, &ts, &refq, &w)?;
+    let mut a = align(samples, &ts, &refq, &w)?;
+    if w.estimate_mount && !w.rest_phase && !a.looks_at_rest && !o.force_align {
+        // no rest phase, and the first seconds are not at rest either: a
+        // mount taken from them holds the motion (0.1 g is 5.7 deg), so none
+        let n = score::Window {
+            t0: w.t0,
+            t1: w.t0 + score::YAW_OFFSET_WINDOW_S,
+            estimate_mount: false,
+            rest_phase: false,
+            refused_in_motion: true,
+            source: format!(
+                "no mount (no rest phase, and the first {} s do not look like rest: gyro std {:.2} deg/s, accel std {:.3} g; \
+                 --align-s {} takes it from them anyway)",
+                o.align_s, a.gyro_std_dps, a.accel_std_g, o.align_s
+            ),
+        };
+        a = align(samples, &ts, &refq, &n)?;
+    }
     let (att, modes, magn) = ours;
     let spec = ScoreSpec { ts: &ts, refq: &refq, align: &a, skip: o.skip, period, yaw: magn };
     let (sc, errors) = score(&att, Some(&modes), &spec);
@@ -277,9 +299,13 @@ impl Evaluation {
         out
     }
 
-    /// A note when the alignment window does not look like rest.
+    /// A note when the alignment window does not look like rest, or when no
+    /// mount was taken because it did not.
     pub fn rest_warning(&self, name: &str) -> Option<String> {
         let a = &self.alignment;
+        if a.window.refused_in_motion {
+            return Some(format!("{name}: {}\n", a.window.source));
+        }
         (a.window.estimate_mount && !a.looks_at_rest).then(|| {
             format!(
                 "{name}: the alignment window ({}, {:.1}..{:.1} s) does not look like rest (gyro std {:.2} deg/s, accel std {:.3} g): \
@@ -407,8 +433,9 @@ pub fn dispatch(
     if !(skip.is_finite() && skip >= 0.0) {
         return Err(format!("--skip must be >= 0 s, got {skip}"));
     }
-    if !(a.align_s.is_finite() && a.align_s >= 0.0) {
-        return Err(format!("--align-s must be >= 0 s, got {}", a.align_s));
+    let align_s = a.align_s.unwrap_or(RefOptions::default().align_s);
+    if !(align_s.is_finite() && align_s >= 0.0) {
+        return Err(format!("--align-s must be >= 0 s, got {align_s}"));
     }
     if !a.offset.is_finite() {
         return Err(format!("--offset must be a finite number of seconds, got {}", a.offset));
@@ -417,7 +444,7 @@ pub fn dispatch(
         Some(p) => Config::load(p).map_err(|e| e.to_string())?,
         None => Config::default(),
     };
-    let o = RefOptions { skip, offset: a.offset, align_s: a.align_s, peers: a.peers };
+    let o = RefOptions { skip, offset: a.offset, align_s, force_align: a.align_s.is_some(), peers: a.peers };
     if let Some(dir) = &a.realdata {
         let label = config.map(|p| p.display().to_string()).unwrap_or_else(|| "built-in defaults".into());
         return realdata::run(dir, &cfg, &label, out, &o).map(Some);

@@ -77,6 +77,11 @@ pub struct Window {
     pub source: String,
     /// False: the mount is not estimated (identity).
     pub estimate_mount: bool,
+    /// The window is the reference's first rest phase.
+    pub rest_phase: bool,
+    /// No rest phase, and the first seconds were not at rest: no mount
+    /// (`source` says why).
+    pub refused_in_motion: bool,
 }
 
 /// The first rest phase, or the first `align_s` seconds from the first valid
@@ -91,6 +96,8 @@ pub fn alignment_window(r: &Reference, align_s: f64, offset: f64) -> Result<Wind
                 t0: r.rows[a].t - offset,
                 t1: r.rows[b].t - offset,
                 estimate_mount: true,
+                rest_phase: true,
+                refused_in_motion: false,
                 source: "first rest phase".into(),
             });
         }
@@ -102,10 +109,19 @@ pub fn alignment_window(r: &Reference, align_s: f64, offset: f64) -> Result<Wind
             t0,
             t1: t0 + YAW_OFFSET_WINDOW_S,
             estimate_mount: false,
+            rest_phase: false,
+            refused_in_motion: false,
             source: "no mount (no rest phase, --align-s 0)".into(),
         });
     }
-    Ok(Window { t0, t1: t0 + align_s, estimate_mount: true, source: format!("first {align_s} s (no rest phase in the reference)") })
+    Ok(Window {
+        t0,
+        t1: t0 + align_s,
+        estimate_mount: true,
+        rest_phase: false,
+        refused_in_motion: false,
+        source: format!("first {align_s} s (no rest phase in the reference)"),
+    })
 }
 
 /// The alignment window looks like rest when no axis varies more than this
