@@ -314,8 +314,9 @@ pub struct MekfConfig {
     /// Rate of the covariance propagation and the measurement updates, Hz
     /// (the state is propagated at every sample). Default 25.
     pub update_hz: f64,
-    /// Relative gyro scale-factor and misalignment uncertainty: the
-    /// attitude's variance grows by (this x angle turned)^2. Default 0.01.
+    /// Relative gyro scale-factor and misalignment uncertainty: the tilt's
+    /// variance grows by (this x angle turned)^2, the heading's by (this x
+    /// angle turned about the vertical)^2. Default 0.01.
     pub gyro_scale_error: f64,
     /// Floor of the 1-sigma of the tilt measured at rest (accelerometer
     /// bias, a surface that is not quite still), deg. Default 0.05.

@@ -73,9 +73,14 @@ impl Mekf {
         }
         let out = p;
         let t = a.t;
+        // A scale error turns the heading by its share of the turn about the
+        // vertical only (a turn about a horizontal axis tilts the unit); the
+        // tilt keeps the whole turn, a bound on its share
         let turned = self.p.gyro_scale * a.turned;
+        let turned_z = self.p.gyro_scale * a.turned_z;
         for i in 0..3 {
-            out[TH + i][TH + i] += self.p.q_gyro * t + turned * turned;
+            let s = if i == 2 { turned_z } else { turned };
+            out[TH + i][TH + i] += self.p.q_gyro * t + s * s;
             out[BI + i][BI + i] += q_bias * t;
             out[VE + i][VE + i] += self.p.q_accel * t;
         }

@@ -212,6 +212,8 @@ struct Accum {
     accel: [f64; 3],
     /// Σ |omega| dt, rad.
     turned: f64,
+    /// Σ |turn rate about the vertical| dt, rad.
+    turned_z: f64,
     suspect: bool,
     /// The policy held for every sample of the tick.
     quasi: bool,
@@ -590,6 +592,9 @@ impl Mekf {
             }
             a.t += dt;
             a.turned += wn * dt;
+            // the turn about the vertical: the heading's share of a scale error
+            let wz = self.c[2][0] * w[0] + self.c[2][1] * w[1] + self.c[2][2] * w[2];
+            a.turned_z += wz.abs() * dt;
             if self.vehicle && self.p.vehicle == Vehicle::Auto && !self.p.speed_aided {
                 // decided on the measurements, never on the filter's own
                 // state (a diverged filter must not talk itself out of the

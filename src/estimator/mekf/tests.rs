@@ -235,3 +235,22 @@ fn a_vertical_speed_beyond_any_road_is_held_to_the_bound() {
     let (a, b) = (run(1.5, 0.0), run(1.5, 2.0));
     assert_eq!((a.v, a.q), (b.v, b.q), "within the bound nothing changes");
 }
+
+/// The covariance a 1 % gyro scale error adds over a tick: a quarter turn
+/// about a horizontal axis grows the tilt's and not the heading's; the same
+/// turn about the vertical grows the heading's as well.
+#[test]
+fn a_scale_error_turns_the_heading_only_by_the_turn_about_the_vertical() {
+    use std::f64::consts::FRAC_PI_2;
+    let mut m = filter();
+    let (q, s) = (m.p.q_gyro, (m.p.gyro_scale * FRAC_PI_2).powi(2));
+    assert!(s > 100.0 * q, "the scale term is the one tested: {s} against {q}");
+    for (turned_z, heading) in [(0.0, q), (FRAC_PI_2, q + s)] {
+        m.cov = [[0.0; N]; N];
+        m.propagate(&Accum { t: 1.0, n: 1, turned: FRAC_PI_2, turned_z, ..Accum::default() });
+        for i in 0..2 {
+            assert!((m.cov[TH + i][TH + i] - (q + s)).abs() < 1e-15, "tilt {i}: {}", m.cov[TH + i][TH + i]);
+        }
+        assert!((m.cov[TH + 2][TH + 2] - heading).abs() < 1e-15, "heading {} against {heading}", m.cov[TH + 2][TH + 2]);
+    }
+}
