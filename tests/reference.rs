@@ -305,4 +305,10 @@ fn the_command_writes_the_report_and_refuses_bad_references() {
     assert!(!o.status.success());
     let o = run(&["evaluate", "--realdata", p(d.path())]);
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("no recording folder"));
+    // --align-s and --offset mean nothing without a measured reference
+    for extra in [["--align-s", "3"], ["--offset", "2"]] {
+        let o = run(&[&["evaluate", "--scenario", "static", "--seeds", "1", "--duration", "20"][..], &extra[..]].concat());
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && e.contains("--align-s and --offset apply to a measured reference only"), "{extra:?}: {e}");
+    }
 }

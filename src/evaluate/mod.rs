@@ -175,6 +175,9 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
         print!("{text}");
         return Ok(());
     }
+    if a.real.align_s.is_some() || a.real.offset != 0.0 {
+        return Err("--align-s and --offset apply to a measured reference only (--reference or --realdata)".into());
+    }
     let cfg = match &a.config {
         Some(p) => Config::load(p).map_err(|e| e.to_string())?,
         None => Config::default(),
