@@ -21,16 +21,14 @@ impl Mekf {
         let mut o = Outcome::default();
         self.dx = [0.0; N];
         let omega = [a.omega[0] / n, a.omega[1] / n, a.omega[2] / n];
-        // The wheels say standing (0) or moving; a quiet IMU with standing
-        // wheels is a standstill without waiting for the detector's time.
+        // With wheel speeds the wheels decide that the car stands (read
+        // standing for WHEEL_STANDING_S), the IMU only that it is quiet, with
+        // no wait for the detector's time: a steady 0.05 g deceleration looks
+        // like rest to an IMU alone. (The detector's rest implies quiet.)
         let wheel = if self.p.speed_aided { self.speed } else { None };
         let wheel_standing = wheel.is_some_and(|v| v.abs() < WHEEL_STANDING);
         self.wheel_standing_s = if wheel_standing { self.wheel_standing_s + t } else { 0.0 };
-        let wheels_stood = self.wheel_standing_s >= WHEEL_STANDING_S;
-        // With wheel speeds the wheels decide that the car stands; the IMU
-        // only that it is quiet (a steady 0.05 g deceleration looks like rest
-        // to an IMU alone)
-        let imu_still = if wheel.is_some() { wheels_stood && (a.rest || a.quiet) } else { a.rest };
+        let imu_still = if wheel.is_some() { self.wheel_standing_s >= WHEEL_STANDING_S && a.quiet } else { a.rest };
         let still = imu_still && !a.suspect;
         // A steady signal at a speed the filter is sure of is a smooth
         // cruise, not a standstill: the gyro still reads the bias on a
