@@ -312,3 +312,51 @@ fn the_command_writes_the_report_and_refuses_bad_references() {
         assert!(!o.status.success() && e.contains("--align-s and --offset apply to a measured reference only"), "{extra:?}: {e}");
     }
 }
+
+/// `--realdata`: a recording's clock need not start at 0 (the log's
+/// sample clock does; the reference is on the CSV's clock), and a folder
+/// that cannot be evaluated is named under the table while the others are
+/// scored (exit 1 all the same, for scripts).
+#[test]
+fn realdata_recordings_on_any_clock_and_a_bad_one_does_not_stop_the_others() {
+    use std::io::Write;
+    let d = tempfile::tempdir().unwrap();
+    let (_, samples, truth) = sim(&d.path().join("run"));
+    let root = d.path().join("recordings");
+    let rows = reference_rows(&truth);
+    for (name, shift, broken) in [("rec-a", 0.0, false), ("rec-b", 1000.0, false), ("rec-c", 0.0, true)] {
+        let dir = root.join(name);
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut imu = String::from("t,gx,gy,gz,ax,ay,az,mx,my,mz,temp\n");
+        for (s, tr) in samples.iter().zip(&truth) {
+            let v = [s.gyro, s.accel, s.magn].concat();
+            let v: Vec<String> = v.iter().map(|x| format!("{x:.7}")).collect();
+            imu += &format!("{:.6},{},{:.3}\n", tr.t + shift, v.join(","), s.temp);
+        }
+        let mut reference = String::from("t,roll,pitch,yaw,valid,rest\n");
+        for (t, a) in &rows {
+            let valid = !broken as u8;
+            reference += &format!("{:.6},{:.6},{:.6},{:.6},{valid},{}\n", t + shift, a[0], a[1], a[2], (*t < 3.0) as u8);
+        }
+        for (file, text) in [("imu.csv.gz", imu), ("reference.csv.gz", reference)] {
+            let mut gz = flate2::write::GzEncoder::new(std::fs::File::create(dir.join(file)).unwrap(), flate2::Compression::fast());
+            gz.write_all(text.as_bytes()).unwrap();
+            gz.finish().unwrap();
+        }
+    }
+    let o = run(&["evaluate", "--realdata", p(&root)]);
+    let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert_eq!(o.status.code(), Some(1), "{out}{err}");
+    assert!(err.contains("1 of the recordings") && err.contains("could not be evaluated"), "{err}");
+    assert!(out.contains("* not evaluated: rec-c: ") && out.contains("no valid reference row"), "{out}");
+    // the same recording 1000 s later on its clock scores the same, to the digit
+    let row = |name: &str| -> String {
+        let i = out.find(&format!("\n{name} ")).unwrap_or_else(|| panic!("no row {name}: {out}"));
+        out[i + 1 + name.len()..].lines().take(2).collect::<Vec<_>>().join("\n")
+    };
+    let (a, b) = (row("rec-a"), row("rec-b"));
+    assert!(a.contains("ours") && a.contains("vqf"), "{a}");
+    assert_eq!(a, b, "the shifted clock scored differently");
+    // the mount was found in the shifted one too (MOUNT, within the digits printed)
+    assert!(b.split_whitespace().last().unwrap().trim_end_matches('*').parse::<f64>().unwrap() > 1.0, "{b}");
+}

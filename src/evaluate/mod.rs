@@ -171,9 +171,11 @@ pub struct EvaluateArgs {
 }
 
 pub fn run(a: &EvaluateArgs) -> Result<(), String> {
-    if let Some(text) = crate::reference::dispatch(a.config.as_deref(), a.input.as_deref(), a.out.as_deref(), a.score_from, &a.real)? {
+    if let Some((text, failed)) =
+        crate::reference::dispatch(a.config.as_deref(), a.input.as_deref(), a.out.as_deref(), a.score_from, &a.real)?
+    {
         print!("{text}");
-        return Ok(());
+        return failed.map_or(Ok(()), Err);
     }
     if a.real.align_s.is_some() || a.real.offset != 0.0 {
         return Err("--align-s and --offset apply to a measured reference only (--reference or --realdata)".into());

@@ -113,6 +113,9 @@ impl ImportOptions {
 #[derive(Clone, Debug)]
 pub struct Imported {
     pub samples: usize,
+    /// `t` of the first sample, s: the reference time of the log's first
+    /// sample (`evaluate --offset`).
+    pub t0: f64,
     pub duration_s: f64,
     pub scales: Scales,
     pub timing: Timing,
@@ -162,6 +165,12 @@ impl Imported {
             if self.ignored.is_empty() { String::new() } else { format!("; ignored columns: {}", self.ignored.join(", ")) }
         );
         s += &format!("frames: {} IMU, {} merged from the other log\n", self.log.imu_frames, self.log.merged_lines);
+        if self.t0 != 0.0 {
+            s += &format!(
+                "the first sample is t = {} s in the CSV (the log's sample clock starts at 0): score it against a reference on the CSV's clock with `evaluate --offset {}`\n",
+                self.t0, self.t0
+            );
+        }
         s
     }
 }
@@ -230,6 +239,7 @@ pub fn import_to<W: Write>(csv: &Path, o: &ImportOptions, merge: Option<Merge<'_
     let snippet = snippet(&name, &scales, &timing, has_magn, has_temp, data.len());
     Ok(Imported {
         samples: data.len(),
+        t0: data.t[0],
         duration_s: data.t[data.len() - 1] - data.t[0],
         scales,
         timing,

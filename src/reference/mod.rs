@@ -418,15 +418,17 @@ pub fn evaluate_reference(cfg: &Config, log: &Path, reference: &Path, out: Optio
     Ok(s)
 }
 
-/// The `evaluate` entry for real data: `Some(text)` when `--reference` or
-/// `--realdata` was given, `None` to let the simulated evaluation run.
+/// The `evaluate` entry for real data: `Some((text, failed))` when
+/// `--reference` or `--realdata` was given (`failed`: some recordings could
+/// not be evaluated, the text names them), `None` to let the simulated
+/// evaluation run.
 pub fn dispatch(
     config: Option<&Path>,
     input: Option<&Path>,
     out: Option<&Path>,
     skip: f64,
     a: &ReferenceArgs,
-) -> Result<Option<String>, String> {
+) -> Result<Option<(String, Option<String>)>, String> {
     if !a.active() {
         return Ok(None);
     }
@@ -447,10 +449,14 @@ pub fn dispatch(
     let o = RefOptions { skip, offset: a.offset, align_s, force_align: a.align_s.is_some(), peers: a.peers };
     if let Some(dir) = &a.realdata {
         let label = config.map(|p| p.display().to_string()).unwrap_or_else(|| "built-in defaults".into());
-        return realdata::run(dir, &cfg, &label, out, &o).map(Some);
+        let t = realdata::run(dir, &cfg, &label, out, &o)?;
+        let failed = (!t.failed.is_empty()).then(|| {
+            format!("{} of the recordings under {} could not be evaluated (named under the table)", t.failed.len(), dir.display())
+        });
+        return Ok(Some((t.text, failed)));
     }
     let (Some(log), Some(reference)) = (input, a.reference.as_deref()) else {
         return Err("--reference needs --input LOG".into());
     };
-    evaluate_reference(&cfg, log, reference, out, &o).map(Some)
+    evaluate_reference(&cfg, log, reference, out, &o).map(|t| Some((t, None)))
 }

@@ -54,7 +54,9 @@ pub fn evaluate_recording(dir: &Path, base: &Config, o: &RefOptions) -> Result<R
         return Err(format!("{name}: {} samples imported, {} decoded", import.samples, d.samples.len()));
     }
     let r = read_reference(&dir.join("reference.csv.gz"))?;
-    let o = RefOptions { peers: true, ..o.clone() };
+    // the log's sample clock starts at 0 at the CSV's first `t`; the
+    // reference is on the CSV's clock (`--offset` shifts it further)
+    let o = RefOptions { peers: true, offset: o.offset + import.t0, ..o.clone() };
     let ours = run_ours_log(&log[..], &config, &name)?;
     let eval = evaluate_with(&d.samples, ours, &config, &r, &o).map_err(|e| format!("{name}: {e}"))?;
     Ok(Recording { name, import, config, log, eval })
@@ -71,16 +73,39 @@ struct Row<'a> {
     vqf: Option<&'a super::score::Scores>,
 }
 
-/// Run every recording; returns the printed table.
-pub fn run(dir: &Path, base: &Config, config_label: &str, out: Option<&Path>, o: &RefOptions) -> Result<String, String> {
+/// The printed table, and the recordings that could not be evaluated
+/// (named with the reason under the table too).
+pub struct Table {
+    pub text: String,
+    pub failed: Vec<String>,
+}
+
+/// Run every recording; a recording that cannot be evaluated (a bad file,
+/// no valid reference where the mount is taken) is named with the reason
+/// under the table and the others go on. Err only when none could be.
+pub fn run(dir: &Path, base: &Config, config_label: &str, out: Option<&Path>, o: &RefOptions) -> Result<Table, String> {
     let list = recordings(dir)?;
     let t0 = Instant::now();
     let mut recs = Vec::new();
+    let mut failed = Vec::new();
     for p in &list {
         let t = Instant::now();
-        let r = evaluate_recording(p, base, o)?;
-        eprintln!("[realdata] {}: {} samples in {:.2} s", r.name, r.eval.samples, t.elapsed().as_secs_f64());
-        recs.push(r);
+        match evaluate_recording(p, base, o) {
+            Ok(r) => {
+                eprintln!("[realdata] {}: {} samples in {:.2} s", r.name, r.eval.samples, t.elapsed().as_secs_f64());
+                recs.push(r);
+            }
+            Err(e) => {
+                let name = p.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+                // evaluate_recording's errors mostly name the recording already
+                let e = if e.starts_with(&format!("{name}:")) { e } else { format!("{name}: {e}") };
+                eprintln!("[realdata] not evaluated: {e}");
+                failed.push(e);
+            }
+        }
+    }
+    if recs.is_empty() {
+        return Err(format!("no recording under {} could be evaluated:\n  {}", dir.display(), failed.join("\n  ")));
     }
     eprintln!("[realdata] {} recordings in {:.2} s", recs.len(), t0.elapsed().as_secs_f64());
     let mut s = format!(
@@ -98,6 +123,9 @@ pub fn run(dir: &Path, base: &Config, config_label: &str, out: Option<&Path>, o:
     }
     for r in &recs {
         s += &r.eval.rest_warning(&r.name).map(|w| format!("* {w}")).unwrap_or_default();
+    }
+    for e in &failed {
+        s += &format!("* not evaluated: {e}\n");
     }
     if let Some(od) = out {
         let mut rows = Vec::new();
@@ -124,5 +152,5 @@ pub fn run(dir: &Path, base: &Config, config_label: &str, out: Option<&Path>, o:
         write_atomic(&od.join("realdata.json"), json.as_bytes()).map_err(|e| format!("{}/realdata.json: {e}", od.display()))?;
         s += &format!("wrote {}/realdata.json and a folder per recording\n", od.display());
     }
-    Ok(s)
+    Ok(Table { text: s, failed })
 }
