@@ -4,6 +4,19 @@
 
 use super::*;
 
+/// The tilt error seen in `u`, the measured specific force's direction in
+/// the navigation frame (unit; `-e_z` when the tilt is right): the rotation
+/// that takes `u` to `-e_z` is `(dθ_x, dθ_y, 0)`; returned as the
+/// innovations `(dθ_y, -dθ_x)` of the rows `h[TH + 1] = 1` and
+/// `h[TH] = -1`. Near level this is `(u_x, u_y)`; it stays the whole angle
+/// far from it (a filter upside down sees 180 deg, not `|u_xy|` ≈ 0, which
+/// would hold it there).
+pub(super) fn tilt_innovation(u: &[f64; 3]) -> [f64; 2] {
+    let s = (u[0] * u[0] + u[1] * u[1]).sqrt();
+    let k = if s > 1e-12 { quat::atan2(s, -u[2]) / s } else { 1.0 };
+    [k * u[0], k * u[1]]
+}
+
 impl Mekf {
     /// The ground-vehicle constraint (no lateral / vertical velocity at the
     /// rear axle) or, for a unit that is not a vehicle, a bounded velocity.
@@ -53,14 +66,73 @@ impl Mekf {
         if fnm < 0.3 {
             return [Upd::Skipped; 2];
         }
-        // u = -e_z + (dθ_y, -dθ_x, 0)
+        let nu = tilt_innovation(&[f[0] / fnm, f[1] / fnm, f[2] / fnm]);
         let mut h = [0.0; N];
         h[TH + 1] = 1.0;
-        let a = self.update(&h, f[0] / fnm, var, gain, gate);
+        let a = self.update(&h, nu[0], var, gain, gate);
         let mut h = [0.0; N];
         h[TH] = -1.0;
-        let b = self.update(&h, f[1] / fnm, var, gain, gate);
+        let b = self.update(&h, nu[1], var, gain, gate);
+        if a == Upd::Gated || b == Upd::Gated {
+            self.gravity_refused += self.p.tick_s;
+        } else {
+            self.gravity_refused = 0.0;
+        }
         [a, b]
+    }
+
+    /// Re-level a unit that is not a vehicle in motion, after its low-passed
+    /// gravity has been refused for `relevel_s`: that gravity, not the
+    /// filter's tilt, is right (a unit powered on in motion took its first
+    /// tilt from one sample of the hand's acceleration; VQF takes this
+    /// gravity whole on every sample). The tilt turns to it, the turned
+    /// angle becomes its sigma; a bias no standstill has read was learned
+    /// with the wrong tilt and goes back to the prior; the field's dip was
+    /// measured with that tilt too.
+    pub(super) fn relevel_free(&mut self) {
+        let Some(g) = self.f_lp else { return };
+        let f = g.gravity;
+        let fnm = norm(&f);
+        if fnm < 0.3 {
+            return;
+        }
+        let nu = tilt_innovation(&[f[0] / fnm, f[1] / fnm, f[2] / fnm]);
+        // (dθ_x, dθ_y) from the innovations (dθ_y, -dθ_x)
+        let turn = [-nu[1], nu[0], 0.0];
+        let dq = quat::from_rotvec(&turn);
+        self.q = quat::mul(&dq, &self.q);
+        quat::normalise(&mut self.q);
+        self.c = quat::to_matrix(&self.q);
+        if let Some(lp) = self.f_lp.as_mut() {
+            lp.rotate(&quat::to_matrix(&dq));
+        }
+        let angle2 = self.p.init_angle_sigma * self.p.init_angle_sigma;
+        let bias_too = !self.bias_known;
+        let widen = [TH, TH + 1, VE, VE + 1, VE + 2, BI, BI + 1, BI + 2];
+        for &i in &widen[..if bias_too { 8 } else { 5 }] {
+            for j in 0..N {
+                if j != i {
+                    self.cov[i][j] = 0.0;
+                    self.cov[j][i] = 0.0;
+                }
+            }
+        }
+        self.cov[TH][TH] = angle2;
+        self.cov[TH + 1][TH + 1] = angle2;
+        self.v = [0.0; 3];
+        for i in 0..3 {
+            self.cov[VE + i][VE + i] = self.p.free_var;
+        }
+        if !self.bias_known {
+            let (pb, ps) = self.prior;
+            self.bias = pb;
+            for i in 0..3 {
+                self.cov[BI + i][BI + i] = ps[i] * ps[i];
+            }
+        }
+        self.mag_ref = None;
+        self.gravity_refused = 0.0;
+        self.counters.relevels += 1;
     }
 
     /// Body-axis `i` velocity at the rear axle and its row of H.

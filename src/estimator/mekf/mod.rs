@@ -296,6 +296,8 @@ pub struct Mekf {
     /// Seconds the wheels have read standing.
     wheel_standing_s: f64,
     nhc_refused: f64,
+    /// Seconds the free unit's low-passed gravity has been refused without a break.
+    gravity_refused: f64,
     /// Speed and its sigma when the unit became still (m/s).
     still_speed: Option<(f64, f64)>,
     /// A counter gap happened and no still period has ended since.
@@ -369,6 +371,7 @@ impl Mekf {
             refused_still: 0.0,
             wheel_standing_s: 0.0,
             nhc_refused: 0.0,
+            gravity_refused: 0.0,
             still_speed: None,
             after_gap: false,
             heading_open: false,
@@ -609,7 +612,7 @@ impl Mekf {
                 // a car body never tilts past 45 deg either
                 let upright = -self.body_f_lp[2] > std::f64::consts::FRAC_1_SQRT_2 * norm(&self.body_f_lp);
                 if self.xy_rate2 > self.p.handheld_rate * self.p.handheld_rate || !upright {
-                    self.vehicle = false;
+                    self.leave_vehicle_model();
                 }
             }
         }
@@ -719,8 +722,41 @@ impl Mekf {
         self.still_speed = None;
         self.refused_still = 0.0;
         self.nhc_refused = 0.0;
+        self.gravity_refused = 0.0;
         self.refused_share = 0.0;
         self.counters.restarts += 1;
+    }
+
+    /// The unit is not in a vehicle after all. Before a standstill has read
+    /// the bias (powered on in a hand, moving), what the vehicle constraint
+    /// taught is void: the bias goes back to its prior, the tilt opens to
+    /// the low-passed gravity. The velocity is a free unit's.
+    fn leave_vehicle_model(&mut self) {
+        self.vehicle = false;
+        let reset = [VE, VE + 1, VE + 2, TH, TH + 1, BI, BI + 1, BI + 2];
+        for &i in &reset[..if self.bias_known { 3 } else { 8 }] {
+            for j in 0..N {
+                if j != i {
+                    self.cov[i][j] = 0.0;
+                    self.cov[j][i] = 0.0;
+                }
+            }
+        }
+        self.v = [0.0; 3];
+        for i in 0..3 {
+            self.cov[VE + i][VE + i] = self.p.free_var;
+        }
+        if !self.bias_known {
+            let (pb, ps) = self.prior;
+            self.bias = pb;
+            let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
+            for i in 0..3 {
+                self.cov[BI + i][BI + i] = ps[i] * ps[i];
+            }
+            for i in 0..2 {
+                self.cov[TH + i][TH + i] = self.cov[TH + i][TH + i].max(a);
+            }
+        }
     }
 
     /// A unit that is not a vehicle, with a motion walk configured: it

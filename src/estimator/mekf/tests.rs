@@ -254,3 +254,25 @@ fn a_scale_error_turns_the_heading_only_by_the_turn_about_the_vertical() {
         assert!((m.cov[TH + 2][TH + 2] - heading).abs() < 1e-15, "heading {} against {heading}", m.cov[TH + 2][TH + 2]);
     }
 }
+
+/// The tilt innovation is the whole rotation from the measured gravity to
+/// the vertical, at any size: 1 deg as near level, 120 and 179 deg whole
+/// (the small-angle `u_xy` gives sin(179 deg) = 0.017 rad there: a filter
+/// upside down would take itself for level).
+#[test]
+fn the_tilt_innovation_is_the_whole_angle_far_from_level() {
+    for deg in [1.0f64, 30.0, 120.0, 179.0] {
+        for az in [0.0f64, 0.7, 2.5] {
+            let ang = deg.to_radians();
+            let dth = [ang * az.cos(), ang * az.sin(), 0.0];
+            // C_true = R(dθ) C_est: the estimate sees gravity at R(-dθ)(-e_z)
+            let r = quat::to_matrix(&quat::from_rotvec(&[-dth[0], -dth[1], 0.0]));
+            let u = rotate(&r, &[0.0, 0.0, -1.0]);
+            let nu = measure::tilt_innovation(&u);
+            assert!((nu[0] - dth[1]).abs() < 1e-9 && (nu[1] + dth[0]).abs() < 1e-9, "{deg} deg at {az}: {nu:?} against {dth:?}");
+            if deg > 170.0 {
+                assert!(u[0].hypot(u[1]) < 0.02, "the small-angle reading would be {:?}", u);
+            }
+        }
+    }
+}

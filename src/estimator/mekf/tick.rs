@@ -57,15 +57,18 @@ impl Mekf {
         let at_rest = still && !cruising;
         // The paper's policy: what takes the accelerometer for gravity (the
         // low-passed tilt and the bounded velocity of a unit that is not a
-        // vehicle) teaches the bias only when the data say quasi-static, or
-        // while no standstill or saved bias has made it known (a turn-on bias
-        // of several deg/s must not wait for a stop that may never come).
+        // vehicle) teaches the bias only when the data say quasi-static.
         // What holds under any acceleration (standstill, the vehicle
         // constraint, the wheel speed, the magnetic heading) always does.
         // A unit that is not a vehicle learns it in motion too, with its
         // motion walk (`q_bias_motion`): its gyro's error in motion is not
-        // its bias at rest.
-        let learn_gravity = (a.quasi || !self.bias_known || self.learns_in_motion()) && !a.suspect;
+        // its bias at rest; but only once a standstill (or a saved state)
+        // has read the bias. Powered on in motion, the low-passed gravity
+        // lags a tilt still being found: learning a bias of the part's
+        // range (3 deg/s) from it ran away on every BROAD recording started
+        // 15 s into its motion (10-44 deg of roll), so until then it corrects
+        // the tilt only.
+        let learn_gravity = (a.quasi || (self.bias_known && self.learns_in_motion())) && !a.suspect;
         let learn = !a.suspect;
         if still {
             if at_rest {
@@ -91,6 +94,11 @@ impl Mekf {
             if !a.suspect {
                 let learn_v = if self.vehicle { learn } else { learn_gravity };
                 let (f, g) = self.velocity_updates(&omega, learn_v, self.p.gate);
+                if !self.vehicle && self.gravity_refused >= self.p.relevel_s {
+                    self.inject();
+                    self.relevel_free();
+                    fl |= flags::RELEVEL;
+                }
                 o.fused |= f;
                 o.learned |= f && learn_v;
                 let k = (t / LOST_TAU_S).min(1.0);
@@ -116,7 +124,11 @@ impl Mekf {
         self.speed_new = false;
         if self.mag_on == Some(true) && !a.suspect {
             let m = [a.magn[0] / n, a.magn[1] / n, a.magn[2] / n];
-            match self.heading_update(&m, at_rest, learn, self.p.gate) {
+            // a free unit's tilt before a standstill has anchored it is the
+            // low-passed gravity's, a heading measured with it must not
+            // teach the bias either
+            let learn_h = if self.vehicle || self.bias_known { learn } else { learn_gravity || at_rest };
+            match self.heading_update(&m, at_rest, learn_h, self.p.gate) {
                 Some(true) => o.fused = true,
                 Some(false) => {}
                 None => {
@@ -217,14 +229,14 @@ impl Mekf {
             let u = rotate(&self.c, &[f[0] / fnm, f[1] / fnm, f[2] / fnm]);
             let avar = self.last_rest.map_or(1e-4, |r| r.accel_var / 3.0);
             let r_tilt = (avar / n).max(self.p.tilt_floor);
-            // u = -e_z + (dθ_y, -dθ_x, 0)
+            let nu = measure::tilt_innovation(&u);
             let mut h = [0.0; N];
             h[TH + 1] = 1.0;
-            let up = self.update(&h, u[0], r_tilt, all, gate);
+            let up = self.update(&h, nu[0], r_tilt, all, gate);
             note(up, o);
             let mut h = [0.0; N];
             h[TH] = -1.0;
-            let up = self.update(&h, u[1], r_tilt, all, gate);
+            let up = self.update(&h, nu[1], r_tilt, all, gate);
             note(up, o);
         }
     }
