@@ -276,3 +276,69 @@ fn the_tilt_innovation_is_the_whole_angle_far_from_level() {
         }
     }
 }
+
+/// Only a vehicle cruises. A free unit whose velocity estimate has drifted
+/// (a tilt error in motion integrated into it: broad-18 powered on in motion
+/// with several deg/s of turn-on bias) and that then lies still is at a
+/// standstill: zero velocity, re-levelled if need be, not a "smooth cruise"
+/// at 3 m/s that skips the zero-velocity update and keeps the drift.
+#[test]
+fn a_free_unit_lying_still_is_standing_whatever_velocity_it_believes() {
+    let p = crate::estimator::mekf_params(&crate::config::Config::default());
+    let sw = Switching::new(&crate::config::SwitchingConfig::default(), 200.0);
+    let mut m = Mekf::new(MekfParams { vehicle: Vehicle::Off, ..p }, sw);
+    let bias = [0.2, -0.1, 0.05];
+    m.start(&[0.0, 0.0, -1.0], &[0.2, 0.0, 0.4], [0.0; 3], [3.0 * D2R; 3], false);
+    let still = |k: u32| StepIn {
+        dt: if k == 0 { 0.0 } else { 0.005 },
+        t: k as f64 * 0.005,
+        gyro: bias,
+        accel: [0.0, 0.0, -1.0],
+        magn: [0.2, 0.0, 0.4],
+        temp: 25.0,
+        g0: 1.0,
+        dbias: [0.0; 3],
+        suspect: false,
+    };
+    let mut k = 0;
+    // a first rest reads the bias
+    while k < 1000 {
+        m.step(&still(k));
+        k += 1;
+    }
+    assert!(m.bias_known, "the first rest did not read the bias");
+    // a moment of motion
+    let mut moving = still(k);
+    moving.gyro = [bias[0] + 30.0, bias[1], bias[2]];
+    moving.accel = [0.3, 0.0, -1.0];
+    for _ in 0..40 {
+        m.step(&moving);
+        k += 1;
+    }
+    // then it lies still again; as the detector is about to call it rest,
+    // the filter believes 3 m/s north, firmly
+    while m.rest.held() < 0.9 * m.p.rest.min_s {
+        m.step(&still(k));
+        k += 1;
+    }
+    m.v = [3.0, 0.0, 0.0];
+    for i in 0..3 {
+        for j in 0..N {
+            m.cov[VE + i][j] = 0.0;
+            m.cov[j][VE + i] = 0.0;
+        }
+        m.cov[VE + i][VE + i] = 0.01;
+    }
+    let mut standing = 0.0;
+    for _ in 0..800 {
+        let (_, fl, _) = m.step(&still(k));
+        k += 1;
+        if fl & flags::STANDSTILL != 0 {
+            standing += 0.005;
+        }
+    }
+    let speed = norm(&m.v);
+    println!("standstill {standing:.2} s of the last 4 s, speed believed {speed:.3} m/s");
+    assert!(standing > 3.0, "standstill only {standing} s of 4");
+    assert!(speed < 0.05, "the drifted velocity was kept: {speed} m/s");
+}

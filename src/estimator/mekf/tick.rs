@@ -50,7 +50,10 @@ impl Mekf {
         // Before the bias is known (powered on while driving, no saved
         // state) the speed is the filter's guess, not evidence: a still
         // period then is a standstill, as after a gap.
-        let cruising = !wheel_standing
+        // Only a vehicle cruises: a free unit's velocity is a bounded guess
+        // about zero (it goes nowhere on average), never evidence of speed.
+        let cruising = self.vehicle
+            && !wheel_standing
             && !self.after_gap
             && (self.bias_known || wheel.is_some())
             && self.still_speed.is_some_and(|(v, sv)| v > CRUISE_SPEED.max(3.0 * sv));
