@@ -107,9 +107,16 @@ impl Mekf {
             lp.rotate(&quat::to_matrix(&dq));
         }
         let angle2 = self.p.init_angle_sigma * self.p.init_angle_sigma;
+        // The heading was measured from the field with the wrong tilt: a
+        // tilt error e turns it by up to e x tan(dip) (2-3 e at 65-70 deg
+        // of dip); it opens by three times the turned angle, at most as at
+        // power-on (a quarter turn), so the next undisturbed field sets it.
+        let turned = (nu[0] * nu[0] + nu[1] * nu[1]).sqrt();
+        let heading2 = (3.0 * turned).min(std::f64::consts::FRAC_PI_2).powi(2);
+        let open_heading = heading2 > self.cov[TH + 2][TH + 2];
         let bias_too = !self.bias_known;
         let widen = [TH, TH + 1, VE, VE + 1, VE + 2, BI, BI + 1, BI + 2];
-        for &i in &widen[..if bias_too { 8 } else { 5 }] {
+        for &i in widen[..if bias_too { 8 } else { 5 }].iter().chain(if open_heading { &[TH + 2][..] } else { &[][..] }) {
             for j in 0..N {
                 if j != i {
                     self.cov[i][j] = 0.0;
@@ -119,6 +126,9 @@ impl Mekf {
         }
         self.cov[TH][TH] = angle2;
         self.cov[TH + 1][TH + 1] = angle2;
+        if open_heading {
+            self.cov[TH + 2][TH + 2] = heading2;
+        }
         self.v = [0.0; 3];
         for i in 0..3 {
             self.cov[VE + i][VE + i] = self.p.free_var;
