@@ -176,6 +176,19 @@ impl Mekf {
         Upd::Fused
     }
 
+    /// Cut the correlations of these error-state rows with every other
+    /// (their variances stay).
+    pub(super) fn decorrelate(&mut self, rows: &[usize]) {
+        for &i in rows {
+            for j in 0..N {
+                if j != i {
+                    self.cov[i][j] = 0.0;
+                    self.cov[j][i] = 0.0;
+                }
+            }
+        }
+    }
+
     /// Apply the accumulated error to the state and clear it.
     pub(super) fn inject(&mut self) {
         let d = self.dx;

@@ -114,32 +114,14 @@ impl Mekf {
         let turned = (nu[0] * nu[0] + nu[1] * nu[1]).sqrt();
         let heading2 = (3.0 * turned).min(std::f64::consts::FRAC_PI_2).powi(2);
         let open_heading = heading2 > self.cov[TH + 2][TH + 2];
-        let bias_too = !self.bias_known;
-        let widen = [TH, TH + 1, VE, VE + 1, VE + 2, BI, BI + 1, BI + 2];
-        for &i in widen[..if bias_too { 8 } else { 5 }].iter().chain(if open_heading { &[TH + 2][..] } else { &[][..] }) {
-            for j in 0..N {
-                if j != i {
-                    self.cov[i][j] = 0.0;
-                    self.cov[j][i] = 0.0;
-                }
-            }
-        }
+        let tilt_rows = [TH, TH + 1, TH + 2];
+        self.decorrelate(&tilt_rows[..if open_heading { 3 } else { 2 }]);
         self.cov[TH][TH] = angle2;
         self.cov[TH + 1][TH + 1] = angle2;
         if open_heading {
             self.cov[TH + 2][TH + 2] = heading2;
         }
-        self.v = [0.0; 3];
-        for i in 0..3 {
-            self.cov[VE + i][VE + i] = self.p.free_var;
-        }
-        if !self.bias_known {
-            let (pb, ps) = self.prior;
-            self.bias = pb;
-            for i in 0..3 {
-                self.cov[BI + i][BI + i] = ps[i] * ps[i];
-            }
-        }
+        self.free_velocity_and_unread_bias();
         self.mag_ref = None;
         self.gravity_refused = 0.0;
         self.counters.relevels += 1;
@@ -264,14 +246,7 @@ impl Mekf {
             self.bias[i] = r.gyro_lp[i];
         }
         // decorrelate and widen tilt, bias and velocity (heading and scale keep theirs)
-        for i in [TH, TH + 1, BI, BI + 1, BI + 2, VE, VE + 1, VE + 2] {
-            for j in 0..N {
-                if j != i {
-                    self.cov[i][j] = 0.0;
-                    self.cov[j][i] = 0.0;
-                }
-            }
-        }
+        self.decorrelate(&[TH, TH + 1, BI, BI + 1, BI + 2, VE, VE + 1, VE + 2]);
         for i in 0..2 {
             self.cov[TH + i][TH + i] = dt;
         }

@@ -733,28 +733,32 @@ impl Mekf {
     /// the low-passed gravity. The velocity is a free unit's.
     fn leave_vehicle_model(&mut self) {
         self.vehicle = false;
-        let reset = [VE, VE + 1, VE + 2, TH, TH + 1, BI, BI + 1, BI + 2];
-        for &i in &reset[..if self.bias_known { 3 } else { 8 }] {
-            for j in 0..N {
-                if j != i {
-                    self.cov[i][j] = 0.0;
-                    self.cov[j][i] = 0.0;
-                }
+        if !self.bias_known {
+            let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
+            self.decorrelate(&[TH, TH + 1]);
+            for i in 0..2 {
+                self.cov[TH + i][TH + i] = self.cov[TH + i][TH + i].max(a);
             }
         }
+        self.free_velocity_and_unread_bias();
+    }
+
+    /// A free unit's velocity (zero, `free_velocity_sigma`) and, while no
+    /// standstill has read it, the prior bias with the prior's sigma (what
+    /// was learned with a wrong tilt or a wrong model is void): what the end
+    /// of the vehicle model and a re-levelling in motion leave.
+    fn free_velocity_and_unread_bias(&mut self) {
+        self.decorrelate(&[VE, VE + 1, VE + 2]);
         self.v = [0.0; 3];
         for i in 0..3 {
             self.cov[VE + i][VE + i] = self.p.free_var;
         }
         if !self.bias_known {
+            self.decorrelate(&[BI, BI + 1, BI + 2]);
             let (pb, ps) = self.prior;
             self.bias = pb;
-            let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
             for i in 0..3 {
                 self.cov[BI + i][BI + i] = ps[i] * ps[i];
-            }
-            for i in 0..2 {
-                self.cov[TH + i][TH + i] = self.cov[TH + i][TH + i].max(a);
             }
         }
     }
