@@ -59,14 +59,8 @@ impl Mekf {
     /// The navigation-frame low-passed specific force as gravity (tilt
     /// only), held the more loosely the harder the unit is being moved.
     pub(super) fn gravity_lp_update(&mut self, gain: Gain, gate: f64) -> [Upd; 2] {
-        let Some(g) = self.f_lp else { return [Upd::Skipped; 2] };
-        let f = g.gravity;
+        let (Some(g), Some(nu)) = (self.f_lp, self.gravity_lp_innovation()) else { return [Upd::Skipped; 2] };
         let var = g.tilt_var(self.p.lp_tilt_var, self.p.tilt_motion_share2);
-        let fnm = norm(&f);
-        if fnm < 0.3 {
-            return [Upd::Skipped; 2];
-        }
-        let nu = tilt_innovation(&[f[0] / fnm, f[1] / fnm, f[2] / fnm]);
         let mut h = [0.0; N];
         h[TH + 1] = 1.0;
         let a = self.update(&h, nu[0], var, gain, gate);
@@ -90,22 +84,14 @@ impl Mekf {
     /// with the wrong tilt and goes back to the prior; the field's dip was
     /// measured with that tilt too.
     pub(super) fn relevel_free(&mut self) {
-        let Some(g) = self.f_lp else { return };
-        let f = g.gravity;
-        let fnm = norm(&f);
-        if fnm < 0.3 {
-            return;
-        }
-        let nu = tilt_innovation(&[f[0] / fnm, f[1] / fnm, f[2] / fnm]);
-        // (dθ_x, dθ_y) from the innovations (dθ_y, -dθ_x)
-        let turn = [-nu[1], nu[0], 0.0];
-        let dq = quat::from_rotvec(&turn);
-        self.q = quat::mul(&dq, &self.q);
-        quat::normalise(&mut self.q);
-        self.c = quat::to_matrix(&self.q);
-        if let Some(lp) = self.f_lp.as_mut() {
-            lp.rotate(&quat::to_matrix(&dq));
-        }
+        let Some(nu) = self.gravity_lp_innovation() else { return };
+        // the whole turn, as an error state: (dθ_x, dθ_y) from the
+        // innovations (dθ_y, -dθ_x); `inject` turns the attitude and the
+        // low-passed force with it
+        self.dx = [0.0; N];
+        self.dx[TH] = -nu[1];
+        self.dx[TH + 1] = nu[0];
+        self.inject();
         let angle2 = self.p.init_angle_sigma * self.p.init_angle_sigma;
         // The heading was measured from the field with the wrong tilt: a
         // tilt error e turns it by up to e x tan(dip) (2-3 e at 65-70 deg
@@ -125,6 +111,14 @@ impl Mekf {
         self.mag_ref = None;
         self.gravity_refused = 0.0;
         self.counters.relevels += 1;
+    }
+
+    /// The low-passed gravity's tilt innovation (`tilt_innovation`); None
+    /// before there is one, or while it holds less than 0.3 g.
+    fn gravity_lp_innovation(&self) -> Option<[f64; 2]> {
+        let f = self.f_lp?.gravity;
+        let fnm = norm(&f);
+        (fnm >= 0.3).then(|| tilt_innovation(&[f[0] / fnm, f[1] / fnm, f[2] / fnm]))
     }
 
     /// Body-axis `i` velocity at the rear axle and its row of H.
