@@ -7,7 +7,7 @@
 //! `cargo test --release --test realdata -- --nocapture` shows the table.
 
 mod common;
-use common::bin;
+use common::{bin, read_gz, write_gz};
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -272,11 +272,9 @@ fn the_hand_held_gyro_alone_drifts_between_rests() {
 /// bounded to 2 deg/s) is not. Prints the tilt RMS of both, before and after.
 #[test]
 fn a_turn_on_bias_of_several_deg_per_s_changes_nothing_after_the_first_rest() {
-    use flate2::{read::GzDecoder, write::GzEncoder, Compression};
     use gyrocomp::config::Config;
     use gyrocomp::reference::realdata::evaluate_recording;
     use gyrocomp::reference::RefOptions;
-    use std::io::{Read, Write};
     let Some(dir) = realdata_dir() else {
         println!("skipped: ../shared/realdata not found (set GYROCOMP_REALDATA to the folder of recordings)");
         return;
@@ -293,23 +291,18 @@ fn a_turn_on_bias_of_several_deg_per_s_changes_nothing_after_the_first_rest() {
         // the same recording, every gyro reading shifted by `extra`
         let biased = tmp.path().join(name);
         std::fs::create_dir(&biased).unwrap();
-        let mut text = String::new();
-        GzDecoder::new(std::fs::File::open(rec.join("imu.csv.gz")).unwrap()).read_to_string(&mut text).unwrap();
-        let mut out = GzEncoder::new(std::fs::File::create(biased.join("imu.csv.gz")).unwrap(), Compression::fast());
-        for (k, line) in text.lines().enumerate() {
-            if k == 0 {
-                assert!(line.starts_with("t,gx,gy,gz,"), "{name}: header {line}");
-                writeln!(out, "{line}").unwrap();
-                continue;
-            }
+        let text = read_gz(&rec.join("imu.csv.gz"));
+        let header = text.lines().next().unwrap();
+        assert!(header.starts_with("t,gx,gy,gz,"), "{name}: header {header}");
+        let rows = text.lines().skip(1).map(|line| {
             let mut f: Vec<String> = line.split(',').map(str::to_string).collect();
             for i in 0..3 {
                 let v: f64 = f[1 + i].parse().unwrap();
                 f[1 + i] = format!("{}", v + extra[i]);
             }
-            writeln!(out, "{}", f.join(",")).unwrap();
-        }
-        out.finish().unwrap();
+            f.join(",").into()
+        });
+        write_gz(&biased.join("imu.csv.gz"), std::iter::once(header.into()).chain(rows));
         std::fs::copy(rec.join("reference.csv.gz"), biased.join("reference.csv.gz")).unwrap();
         let tilt = |d: &std::path::Path| {
             let r = evaluate_recording(d, &Config::default(), &RefOptions::default()).unwrap();
@@ -339,19 +332,12 @@ fn a_turn_on_bias_of_several_deg_per_s_changes_nothing_after_the_first_rest() {
 /// of the five went to 25-180 deg. Prints ours and VQF.
 #[test]
 fn powered_on_in_a_moving_hand_no_recording_diverges() {
-    use flate2::{read::GzDecoder, write::GzEncoder, Compression};
     use gyrocomp::config::Config;
     use gyrocomp::reference::realdata::evaluate_recording;
     use gyrocomp::reference::RefOptions;
-    use std::io::{Read, Write};
     let Some(dir) = realdata_dir() else {
         println!("skipped: ../shared/realdata not found (set GYROCOMP_REALDATA to the folder of recordings)");
         return;
-    };
-    let read = |p: &std::path::Path| {
-        let mut text = String::new();
-        GzDecoder::new(std::fs::File::open(p).unwrap()).read_to_string(&mut text).unwrap();
-        text
     };
     let tmp = tempfile::tempdir().unwrap();
     let mut n = 0;
@@ -363,7 +349,7 @@ fn powered_on_in_a_moving_hand_no_recording_diverges() {
             println!("skipped {name}: not found");
             continue;
         }
-        let reference = read(&rec.join("reference.csv.gz"));
+        let reference = read_gz(&rec.join("reference.csv.gz"));
         let header: Vec<&str> = reference.lines().next().unwrap().split(',').collect();
         let (ti, ri) = (0, header.iter().position(|h| *h == "rest").expect("a rest column"));
         // the end of the first rest: the first row marked moving after one marked resting
@@ -381,15 +367,13 @@ fn powered_on_in_a_moving_hand_no_recording_diverges() {
         let t0 = rest_end.expect("a rest phase that ends") + 15.0;
         let cut = tmp.path().join(name);
         std::fs::create_dir(&cut).unwrap();
-        for file in ["imu.csv.gz", "reference.csv.gz"] {
-            let text = if file == "imu.csv.gz" { read(&rec.join(file)) } else { reference.clone() };
-            let mut out = GzEncoder::new(std::fs::File::create(cut.join(file)).unwrap(), Compression::fast());
-            for (k, line) in text.lines().enumerate() {
-                if k == 0 || line.split(',').next().unwrap().parse::<f64>().unwrap() >= t0 {
-                    writeln!(out, "{line}").unwrap();
-                }
-            }
-            out.finish().unwrap();
+        for (file, text) in [("imu.csv.gz", read_gz(&rec.join("imu.csv.gz"))), ("reference.csv.gz", reference.clone())] {
+            let kept = text
+                .lines()
+                .enumerate()
+                .filter(|(k, line)| *k == 0 || line.split(',').next().unwrap().parse::<f64>().unwrap() >= t0)
+                .map(|(_, line)| line.into());
+            write_gz(&cut.join(file), kept);
         }
         let r = evaluate_recording(&cut, &Config::default(), &RefOptions::default()).unwrap();
         let (ours, vqf) = (&r.eval.results[0].scores, &r.eval.results[1].scores);

@@ -319,7 +319,6 @@ fn the_command_writes_the_report_and_refuses_bad_references() {
 /// scored (exit 1 all the same, for scripts).
 #[test]
 fn realdata_recordings_on_any_clock_and_a_bad_one_does_not_stop_the_others() {
-    use std::io::Write;
     let d = tempfile::tempdir().unwrap();
     let (_, samples, truth) = sim(&d.path().join("run"));
     let root = d.path().join("recordings");
@@ -339,9 +338,7 @@ fn realdata_recordings_on_any_clock_and_a_bad_one_does_not_stop_the_others() {
             reference += &format!("{:.6},{:.6},{:.6},{:.6},{valid},{}\n", t + shift, a[0], a[1], a[2], (*t < 3.0) as u8);
         }
         for (file, text) in [("imu.csv.gz", imu), ("reference.csv.gz", reference)] {
-            let mut gz = flate2::write::GzEncoder::new(std::fs::File::create(dir.join(file)).unwrap(), flate2::Compression::fast());
-            gz.write_all(text.as_bytes()).unwrap();
-            gz.finish().unwrap();
+            common::write_gz(&dir.join(file), text.lines().map(Into::into));
         }
     }
     let o = run(&["evaluate", "--realdata", p(&root)]);

@@ -42,9 +42,14 @@ pub struct Recording {
     pub eval: Evaluation,
 }
 
+/// A recording's name: its folder's.
+fn recording_name(dir: &Path) -> String {
+    dir.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default()
+}
+
 /// Import and evaluate one recording folder (VQF always runs).
 pub fn evaluate_recording(dir: &Path, base: &Config, o: &RefOptions) -> Result<Recording, String> {
-    let name = dir.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+    let name = recording_name(dir);
     let can = dir.join("can.log.gz");
     let can = can.is_file().then_some(can);
     let (log, import) = import_to_memory(&dir.join("imu.csv.gz"), can.as_deref(), &ImportOptions::default())?;
@@ -96,7 +101,7 @@ pub fn run(dir: &Path, base: &Config, config_label: &str, out: Option<&Path>, o:
                 recs.push(r);
             }
             Err(e) => {
-                let name = p.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+                let name = recording_name(p);
                 // evaluate_recording's errors mostly name the recording already
                 let e = if e.starts_with(&format!("{name}:")) { e } else { format!("{name}: {e}") };
                 eprintln!("[realdata] not evaluated: {e}");

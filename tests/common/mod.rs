@@ -77,3 +77,21 @@ pub fn exp_so3(w: [f64; 3]) -> [[f64; 3]; 3] {
 pub fn euler_deg(c: &[[f64; 3]; 3]) -> [f64; 3] {
     [c[2][1].atan2(c[2][2]).to_degrees(), (-c[2][0]).asin().to_degrees(), c[1][0].atan2(c[0][0]).to_degrees()]
 }
+
+/// A gzip text file's contents.
+pub fn read_gz(p: &std::path::Path) -> String {
+    use std::io::Read;
+    let mut text = String::new();
+    flate2::read::GzDecoder::new(std::fs::File::open(p).unwrap()).read_to_string(&mut text).unwrap();
+    text
+}
+
+/// Write these lines, gzip-compressed, to `p`.
+pub fn write_gz<'a>(p: &std::path::Path, lines: impl IntoIterator<Item = std::borrow::Cow<'a, str>>) {
+    use std::io::Write;
+    let mut out = flate2::write::GzEncoder::new(std::fs::File::create(p).unwrap(), flate2::Compression::fast());
+    for line in lines {
+        writeln!(out, "{line}").unwrap();
+    }
+    out.finish().unwrap();
+}
