@@ -378,8 +378,18 @@ fn powered_on_in_a_moving_hand_no_recording_diverges() {
         let r = evaluate_recording(&cut, &Config::default(), &RefOptions::default()).unwrap();
         let (ours, vqf) = (&r.eval.results[0].scores, &r.eval.results[1].scores);
         println!(
-            "{name} from {t0:.1} s: roll max/RMS ours {:.2}/{:.3} VQF {:.2}/{:.3}, pitch ours {:.2}/{:.3} VQF {:.2}/{:.3} deg ({:.0} s scored)",
-            ours.roll.max, ours.roll.rms, vqf.roll.max, vqf.roll.rms, ours.pitch.max, ours.pitch.rms, vqf.pitch.max, vqf.pitch.rms, ours.scored_s
+            "{name} from {t0:.1} s: roll max/RMS ours {:.2}/{:.3} VQF {:.2}/{:.3}, pitch ours {:.2}/{:.3} VQF {:.2}/{:.3} deg, yaw RMS ours {} VQF {} ({:.0} s scored)",
+            ours.roll.max,
+            ours.roll.rms,
+            vqf.roll.max,
+            vqf.roll.rms,
+            ours.pitch.max,
+            ours.pitch.rms,
+            vqf.pitch.max,
+            vqf.pitch.rms,
+            ours.yaw_rms.map_or("not scored".into(), |y| format!("{y:.2}")),
+            vqf.yaw_rms.map_or("not scored".into(), |y| format!("{y:.2}")),
+            ours.scored_s
         );
         assert!(ours.scored_s > 60.0, "{name}: {} s scored: the reference was not found on the cut clock", ours.scored_s);
         assert!(ours.roll.max < 10.0 && ours.pitch.max < 10.0, "{name}: diverged: roll max {} pitch max {}", ours.roll.max, ours.pitch.max);
