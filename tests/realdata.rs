@@ -329,7 +329,10 @@ fn a_turn_on_bias_of_several_deg_per_s_changes_nothing_after_the_first_rest() {
 /// the reference from there. No divergence: roll and pitch within 10 deg of
 /// the reference from 10 s on (the criterion); before the exact tilt
 /// innovation, the re-levelling in motion and the void vehicle model, four
-/// of the five went to 25-180 deg. Prints ours and VQF.
+/// of the five went to 25-180 deg. And within 5 deg (VQF's worst on the same
+/// samples is 2.6): while `vehicle = "auto"` took broad-14's jittering hand
+/// for a car until its first rest, its pitch reached 7.6 deg. Prints ours
+/// and VQF.
 #[test]
 fn powered_on_in_a_moving_hand_no_recording_diverges() {
     use gyrocomp::config::Config;
@@ -393,6 +396,7 @@ fn powered_on_in_a_moving_hand_no_recording_diverges() {
         );
         assert!(ours.scored_s > 60.0, "{name}: {} s scored: the reference was not found on the cut clock", ours.scored_s);
         assert!(ours.roll.max < 10.0 && ours.pitch.max < 10.0, "{name}: diverged: roll max {} pitch max {}", ours.roll.max, ours.pitch.max);
+        assert!(ours.roll.max < 5.0 && ours.pitch.max < 5.0, "{name}: roll max {} pitch max {} deg", ours.roll.max, ours.pitch.max);
         n += 1;
     }
     if n == 0 {

@@ -328,10 +328,11 @@ pub struct MekfConfig {
     /// at the rear axle (`[mounting] lever_arm`). false: a unit that goes
     /// nowhere on average (hand-held, on a bench): a bounded velocity on
     /// every axis and the low-passed specific force as gravity. "auto"
-    /// (default): a vehicle until the body's roll/pitch rates (low-passed
-    /// RMS over 1 s) exceed `handheld_rate_dps`, which no car body does.
+    /// (default): a vehicle until the body's roll/pitch rates swing about
+    /// their 3-s mean by more than `handheld_rate_dps` (RMS over 3 s), which
+    /// no car body does.
     pub vehicle: AutoBool,
-    /// See `vehicle = "auto"`, deg/s. Default 25.
+    /// See `vehicle = "auto"`, deg/s. Default 15.
     pub handheld_rate_dps: f64,
     /// 1-sigma of the vehicle constraint (sideslip, suspension), m/s. Default 0.3.
     pub nhc_sigma: f64,
@@ -397,7 +398,7 @@ impl Default for MekfConfig {
             rest_tilt_sigma_deg: 0.05,
             accel_noise: 0.1,
             vehicle: AutoBool::Auto,
-            handheld_rate_dps: 25.0,
+            handheld_rate_dps: 15.0,
             nhc_sigma: 0.3,
             max_vertical_speed: 2.0,
             free_velocity_sigma: 1.0,

@@ -311,8 +311,10 @@ pub struct Mekf {
     lever_pending: bool,
     /// A bias is known (a rest was seen or a prior given).
     bias_known: bool,
-    /// The vehicle model is in use; the low-passed squared x/y body rate.
+    /// The vehicle model is in use; the x/y body rates' 3-s mean (rad/s)
+    /// and the 1-s low-pass of their squared deviation from it.
     vehicle: bool,
+    xy_rate_mean: [f64; 2],
     xy_rate2: f64,
     /// The bias sigma as of the last update (the covariance changes only there).
     bias_sigma_cache: [f64; 3],
@@ -379,6 +381,7 @@ impl Mekf {
             lever_pending: false,
             bias_known: false,
             vehicle: true,
+            xy_rate_mean: [0.0; 2],
             xy_rate2: 0.0,
             g_ref: GravityRef::default(),
             prior: ([0.0; 3], [0.0; 3]),
@@ -419,6 +422,7 @@ impl Mekf {
         self.bias_sigma_cache = self.bias_sigma();
         // with the car's own speed it is a vehicle
         self.vehicle = self.p.vehicle != Vehicle::Off || self.p.speed_aided;
+        self.xy_rate_mean = [0.0; 2];
         self.xy_rate2 = 0.0;
         self.acc = Accum { quasi: true, rest: true, quiet: true, ..Accum::default() };
         self.rest.reset();
@@ -601,11 +605,16 @@ impl Mekf {
             if self.vehicle && self.p.vehicle == Vehicle::Auto && !self.p.speed_aided {
                 // decided on the measurements, never on the filter's own
                 // state (a diverged filter must not talk itself out of the
-                // vehicle model): the roll/pitch rates less the prior bias,
-                // and the tilt of the low-passed specific force
+                // vehicle model): how the roll/pitch rates swing about their
+                // own 3-s mean (a steady rate is a bias of any size, not a
+                // hand), and the tilt of the low-passed specific force
                 let (pb, _) = self.prior;
-                let (wx, wy) = (gyro[0] - pb[0], gyro[1] - pb[1]);
-                self.xy_rate2 += (wx * wx + wy * wy - self.xy_rate2) * self.alpha_1s;
+                let m = &mut self.xy_rate_mean;
+                let (wx, wy) = (gyro[0] - pb[0] - m[0], gyro[1] - pb[1] - m[1]);
+                let a3 = self.alpha_1s / 3.0;
+                m[0] += wx * a3;
+                m[1] += wy * a3;
+                self.xy_rate2 += (wx * wx + wy * wy - self.xy_rate2) * a3;
                 for i in 0..3 {
                     self.body_f_lp[i] += (s.accel[i] - self.body_f_lp[i]) * self.alpha_1s;
                 }

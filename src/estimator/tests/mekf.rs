@@ -470,6 +470,41 @@ fn mekf_powered_on_at_speed_finds_the_speed_at_the_first_turns() {
 }
 
 #[test]
+fn mekf_a_hand_that_jitters_is_no_vehicle_and_a_steady_bias_is_no_hand() {
+    // Powered on in a hand carried along (BROAD's slow translation): the
+    // hand jitters at 18 deg/s RMS about x/y, under a car's emergency swerve
+    // (30 deg/s of roll rate for a quarter second). What tells them apart is
+    // how long it lasts; a steady turn-on bias of any size is no motion.
+    let bias = [3.0, -2.0, 1.0];
+    let mut m = Motion::new(204.8, bias, 0.0, 0.0, 0.0);
+    let mut e = mekf("");
+    let mut left = None;
+    for k in 0..(204.8 * 10.0) as u32 {
+        let t = k as f64 / 204.8;
+        let w = [18.0 * (2.0 * PI * 3.0 * t).sin(), 18.0 * (2.0 * PI * 2.5 * t).cos(), 10.0 * (2.0 * PI * 0.7 * t).sin()];
+        e.step(&m.step(w, [0.0; 3]));
+        if left.is_none() && !e.mekf().unwrap().vehicle() {
+            left = Some(t);
+        }
+    }
+    let left = left.expect("a hand jittering at 18 deg/s for 10 s is still taken for a vehicle");
+    assert!(left < 4.0, "left the vehicle model only at {left:.1} s");
+    // A car with a large turn-on bias on x/y (12 deg/s) on a rough road
+    // (5 deg/s of body roll/pitch rate) that swerves hard at 8 s and at 9 s.
+    let bias = [9.0, -8.0, 2.0];
+    let mut m = Motion::new(204.8, bias, 0.0, 0.0, 0.0);
+    let mut e = mekf("");
+    for k in 0..(204.8 * 12.0) as u32 {
+        let t = k as f64 / 204.8;
+        let swerve = if (8.0..8.25).contains(&t) || (9.0..9.25).contains(&t) { 30.0 } else { 0.0 };
+        let w = [5.0 * (2.0 * PI * 1.5 * t).sin() + swerve, 5.0 * (2.0 * PI * 1.1 * t).cos(), 0.0];
+        e.step(&m.step(w, [0.0; 3]));
+        assert!(e.mekf().unwrap().vehicle(), "a car taken for a hand at {t:.2} s");
+    }
+    println!("the jittering hand left the vehicle model at {left:.2} s");
+}
+
+#[test]
 fn mekf_speed_hypotheses_end_at_the_first_standstill_or_for_a_hand_held_unit() {
     // parked: zero speed, ended by the first standstill
     let mut m = Motion::new(204.8, [2.0, -1.0, 0.5], 1.0, -1.0, 0.0);
