@@ -189,6 +189,18 @@ impl Mekf {
         }
     }
 
+    /// Bring the 1-sigma of these rows down to `sigma` where it is above it,
+    /// their correlations scaled with them (the covariance stays positive).
+    pub(super) fn shrink(&mut self, rows: &[usize], sigma: f64) {
+        for &i in rows {
+            let s = (sigma / self.cov[i][i].sqrt()).min(1.0);
+            for j in 0..N {
+                self.cov[i][j] *= s;
+                self.cov[j][i] *= s;
+            }
+        }
+    }
+
     /// Apply the accumulated error to the state and clear it.
     pub(super) fn inject(&mut self) {
         let d = self.dx;

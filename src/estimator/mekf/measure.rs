@@ -69,8 +69,12 @@ impl Mekf {
         let b = self.update(&h, nu[1], var, gain, gate);
         if a == Upd::Gated || b == Upd::Gated {
             self.gravity_refused += self.p.tick_s;
+            self.gravity_held = 0.0;
         } else {
             self.gravity_refused = 0.0;
+            if a == Upd::Fused && b == Upd::Fused {
+                self.gravity_held += self.p.tick_s;
+            }
         }
         [a, b]
     }
@@ -84,6 +88,8 @@ impl Mekf {
     /// with the wrong tilt and goes back to the prior; the field's dip was
     /// measured with that tilt too.
     pub(super) fn relevel_free(&mut self) {
+        self.gravity_held = 0.0;
+        self.provisional = false;
         let Some(nu) = self.gravity_lp_innovation() else { return };
         // the whole turn, as an error state: (dθ_x, dθ_y) from the
         // innovations (dθ_y, -dθ_x); `inject` turns the attitude and the

@@ -43,12 +43,15 @@ mod gap;
 mod gravity_lp;
 mod kalman;
 mod measure;
+mod motion_model;
+mod params;
 mod tick;
 
 use gravity_lp::{GravityLp, LpGains};
+pub use params::{MagUse, MekfParams, Vehicle};
 
 use super::quat::{self, cross, norm, rotate, rotate_t, Mat3, Quat};
-use super::rest::{GravityRef, RestDetector, RestParams, RestState};
+use super::rest::{GravityRef, RestDetector, RestState};
 use super::{flags, StepIn};
 use crate::estimator::ekf::wrap_pi;
 use crate::estimator::switching::{Band, Switching};
@@ -70,6 +73,16 @@ const BIAS_LIMIT_SIGMAS: f64 = 4.0;
 /// Seconds of refused heading updates (field not disturbed) after which
 /// the heading is opened to what the field says.
 const HEADING_REACQUIRE_S: f64 = 5.0;
+/// A unit that is not a vehicle, powered on in motion (no standstill has
+/// read its bias): once its low-passed gravity has been taken without a
+/// break for this long, its tilt has settled on it and a steady residual is
+/// the bias's, learned in motion from then on (provisionally, until a
+/// standstill reads it)...
+const PROVISIONAL_SETTLE_S: f64 = 10.0;
+/// ...with the bias's 1-sigma first brought down to this (rad/s; VQF's
+/// motion bias sigma, 0.1 deg/s): the prior's, 3 deg/s, let the lag of
+/// the low-passed gravity in a hand's motion run the bias away.
+const PROVISIONAL_BIAS_SIGMA: f64 = 0.1 * D2R;
 /// Moving, the share of the time (low-passed over `LOST_TAU_S`) the gate
 /// refuses the velocity constraints beyond which the filter is lost (its
 /// attitude, not the vehicle, is wrong): it restarts from its prior.
@@ -95,88 +108,6 @@ const GAP_SPEED_VAR: f64 = 4.0;
 const GAP_ACCEL: f64 = 3.0;
 /// 1-sigma of the vertical-speed bound (`max_vertical_speed`), m/s.
 const VERTICAL_BOUND_SIGMA: f64 = 0.5;
-
-/// Whether the magnetometer is used for heading.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MagUse {
-    /// Decided from the field over the first second: off when it is zero,
-    /// absent or implausible for Earth's (|m| outside 0.1..1.0 gauss).
-    Auto,
-    On,
-    Off,
-}
-
-/// Whether the unit is in a ground vehicle (`[mekf] vehicle`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Vehicle {
-    /// A vehicle until the body's roll and pitch rates say otherwise: a car
-    /// body rolls and pitches by a few deg/s, a hand-held unit by tens.
-    Auto,
-    On,
-    Off,
-}
-
-/// Settings of the filter, in its own units (rad, s, m).
-#[derive(Clone, Debug, PartialEq)]
-pub struct MekfParams {
-    /// Seconds between covariance propagations / measurement updates.
-    pub tick_s: f64,
-    /// Gyro white noise, rad^2/s; bias random walk, rad^2/s^3; accelerometer
-    /// (and vehicle-model) noise, (m/s^2)^2/Hz; speed-scale walk, 1/s.
-    pub q_gyro: f64,
-    /// Relative gyro scale / misalignment uncertainty: the attitude's
-    /// variance grows by (this x rotation angle)^2.
-    pub gyro_scale: f64,
-    pub q_bias: f64,
-    /// Not a vehicle, moving: the bias walk (rad/s)^2/s; 0 = the bias is
-    /// learned in motion only when quasi-static (see `MekfConfig`).
-    pub q_bias_motion: f64,
-    pub q_accel: f64,
-    pub q_scale: f64,
-    /// Ground-vehicle constraint variance (m/s)^2.
-    pub nhc_var: f64,
-    /// A vehicle's largest vertical speed, m/s (0: no bound).
-    pub max_vertical_speed: f64,
-    /// Whether the unit is in a ground vehicle.
-    pub vehicle: Vehicle,
-    /// `Vehicle::Auto`: the low-passed (1 s) RMS of the body x/y rates above
-    /// which the unit is not in a ground vehicle (rad/s).
-    pub handheld_rate: f64,
-    /// Velocity variance of a bounded-velocity unit (hand-held): applied on
-    /// all axes when not a vehicle.
-    pub free_var: f64,
-    /// Not a vehicle: time constant of the navigation-frame low-pass of the
-    /// specific force (s), the floor of the variance of the tilt it gives
-    /// (rad^2), and the share of the motion band's acceleration that adds
-    /// to it (squared; see `gravity_lp`).
-    pub accel_tau: f64,
-    pub lp_tilt_var: f64,
-    pub tilt_motion_share2: f64,
-    pub zupt_var: f64,
-    /// Floor of the at-rest tilt update's variance (accelerometer bias), rad^2.
-    pub tilt_floor: f64,
-    /// Floor of the zero-rate update's variance, (rad/s)^2.
-    pub zru_floor: f64,
-    pub yaw_var: f64,
-    pub speed_var: f64,
-    /// NIS gate (gate_sigma^2).
-    pub gate: f64,
-    pub relevel_s: f64,
-    pub lever: [f64; 3],
-    pub mag: MagUse,
-    pub declination: f64,
-    pub mag_norm_tol: f64,
-    pub mag_dip_tol: f64,
-    pub init_angle_sigma: f64,
-    pub init_bias_sigma: f64,
-    pub init_speed_sigma: f64,
-    pub init_scale_sigma: f64,
-    pub dwell_s: f64,
-    pub turn_rate: f64,
-    pub rest: RestParams,
-    pub g0_window_s: f64,
-    pub speed_aided: bool,
-}
 
 /// What a scalar update did.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -298,6 +229,11 @@ pub struct Mekf {
     nhc_refused: f64,
     /// Seconds the free unit's low-passed gravity has been refused without a break.
     gravity_refused: f64,
+    /// Seconds the free unit's low-passed gravity has been fused without a
+    /// break since the last start, re-level or end of the vehicle model.
+    gravity_held: f64,
+    /// The bias's variance has been capped for provisional learning.
+    provisional: bool,
     /// Speed and its sigma when the unit became still (m/s).
     still_speed: Option<(f64, f64)>,
     /// A counter gap happened and no still period has ended since.
@@ -374,6 +310,8 @@ impl Mekf {
             wheel_standing_s: 0.0,
             nhc_refused: 0.0,
             gravity_refused: 0.0,
+            gravity_held: 0.0,
+            provisional: false,
             still_speed: None,
             after_gap: false,
             heading_open: false,
@@ -602,28 +540,7 @@ impl Mekf {
             // the turn about the vertical: the heading's share of a scale error
             let wz = self.c[2][0] * w[0] + self.c[2][1] * w[1] + self.c[2][2] * w[2];
             a.turned_z += wz.abs() * dt;
-            if self.vehicle && self.p.vehicle == Vehicle::Auto && !self.p.speed_aided {
-                // decided on the measurements, never on the filter's own
-                // state (a diverged filter must not talk itself out of the
-                // vehicle model): how the roll/pitch rates swing about their
-                // own 3-s mean (a steady rate is a bias of any size, not a
-                // hand), and the tilt of the low-passed specific force
-                let (pb, _) = self.prior;
-                let m = &mut self.xy_rate_mean;
-                let (wx, wy) = (gyro[0] - pb[0] - m[0], gyro[1] - pb[1] - m[1]);
-                let a3 = self.alpha_1s / 3.0;
-                m[0] += wx * a3;
-                m[1] += wy * a3;
-                self.xy_rate2 += (wx * wx + wy * wy - self.xy_rate2) * a3;
-                for i in 0..3 {
-                    self.body_f_lp[i] += (s.accel[i] - self.body_f_lp[i]) * self.alpha_1s;
-                }
-                // a car body never tilts past 45 deg either
-                let upright = -self.body_f_lp[2] > std::f64::consts::FRAC_1_SQRT_2 * norm(&self.body_f_lp);
-                if self.xy_rate2 > self.p.handheld_rate * self.p.handheld_rate || !upright {
-                    self.leave_vehicle_model();
-                }
-            }
+            self.watch_vehicle_model(&gyro, &s.accel);
         }
         // The magnetometer decision (auto): the mean |m| over the g0 window.
         if self.mag_on.is_none() {
@@ -702,6 +619,8 @@ impl Mekf {
         self.bias = bias;
         self.v = [0.0; 3];
         self.scale = 0.0;
+        self.gravity_held = 0.0;
+        self.provisional = false;
         self.cov = [[0.0; N]; N];
         let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
         for i in 0..3 {
@@ -734,49 +653,6 @@ impl Mekf {
         self.gravity_refused = 0.0;
         self.refused_share = 0.0;
         self.counters.restarts += 1;
-    }
-
-    /// The unit is not in a vehicle after all. Before a standstill has read
-    /// the bias (powered on in a hand, moving), what the vehicle constraint
-    /// taught is void: the bias goes back to its prior, the tilt opens to
-    /// the low-passed gravity. The velocity is a free unit's.
-    fn leave_vehicle_model(&mut self) {
-        self.vehicle = false;
-        if !self.bias_known {
-            let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
-            self.decorrelate(&[TH, TH + 1]);
-            for i in 0..2 {
-                self.cov[TH + i][TH + i] = self.cov[TH + i][TH + i].max(a);
-            }
-        }
-        self.free_velocity_and_unread_bias();
-    }
-
-    /// A free unit's velocity (zero, `free_velocity_sigma`) and, while no
-    /// standstill has read it, the prior bias with the prior's sigma (what
-    /// was learned with a wrong tilt or a wrong model is void): what the end
-    /// of the vehicle model and a re-levelling in motion leave.
-    fn free_velocity_and_unread_bias(&mut self) {
-        self.decorrelate(&[VE, VE + 1, VE + 2]);
-        self.v = [0.0; 3];
-        for i in 0..3 {
-            self.cov[VE + i][VE + i] = self.p.free_var;
-        }
-        if !self.bias_known {
-            self.decorrelate(&[BI, BI + 1, BI + 2]);
-            let (pb, ps) = self.prior;
-            self.bias = pb;
-            for i in 0..3 {
-                self.cov[BI + i][BI + i] = ps[i] * ps[i];
-            }
-        }
-    }
-
-    /// A unit that is not a vehicle, with a motion walk configured: it
-    /// learns its bias from the low-passed gravity while it moves.
-    #[inline]
-    pub(super) fn learns_in_motion(&self) -> bool {
-        !self.vehicle && self.p.q_bias_motion > 0.0
     }
 
     fn bias_deg(&self) -> [f64; 3] {

@@ -69,9 +69,18 @@ impl Mekf {
         // has read the bias. Powered on in motion, the low-passed gravity
         // lags a tilt still being found: learning a bias of the part's
         // range (3 deg/s) from it ran away on every BROAD recording started
-        // 15 s into its motion (10-44 deg of roll), so until then it corrects
-        // the tilt only.
-        let learn_gravity = (a.quasi || (self.bias_known && self.learns_in_motion())) && !a.suspect;
+        // 15 s into its motion (10-44 deg of roll). So it corrects the tilt
+        // only until the tilt has settled on that gravity (taken without a
+        // break for `PROVISIONAL_SETTLE_S`); from then on a steady residual
+        // is the bias's, learned provisionally from a sigma brought down to
+        // `PROVISIONAL_BIAS_SIGMA` (the cut broad-27's 0.46 deg/s x bias had
+        // held its roll 1.3 deg off for the 100 s to its first rest).
+        if !self.bias_known && !self.provisional && self.learns_in_motion() && self.gravity_held >= PROVISIONAL_SETTLE_S {
+            self.provisional = true;
+            self.shrink(&[BI, BI + 1, BI + 2], PROVISIONAL_BIAS_SIGMA);
+        }
+        let learns_in_motion = self.learns_in_motion() && (self.bias_known || self.provisional);
+        let learn_gravity = (a.quasi || learns_in_motion) && !a.suspect;
         let learn = !a.suspect;
         if still {
             if at_rest {
@@ -129,8 +138,8 @@ impl Mekf {
             let m = [a.magn[0] / n, a.magn[1] / n, a.magn[2] / n];
             // a free unit's tilt before a standstill has anchored it is the
             // low-passed gravity's, a heading measured with it must not
-            // teach the bias either
-            let learn_h = if self.vehicle || self.bias_known { learn } else { learn_gravity || at_rest };
+            // teach the bias either (not even provisionally)
+            let learn_h = if self.vehicle || self.bias_known { learn } else { (a.quasi && learn) || at_rest };
             match self.heading_update(&m, at_rest, learn_h, self.p.gate) {
                 Some(true) => o.fused = true,
                 Some(false) => {}

@@ -1,0 +1,79 @@
+//! Vehicle or hand-held (`[mekf] vehicle`): which motion model the filter
+//! runs, how `"auto"` decides it from the measurements, and what leaving
+//! the vehicle model voids.
+
+use super::*;
+
+impl Mekf {
+    /// `vehicle = "auto"`, once per sample while the vehicle model is in
+    /// use: the body rates (rad/s, raw) and specific force (g) decide.
+    pub(super) fn watch_vehicle_model(&mut self, gyro: &[f64; 3], accel: &[f64; 3]) {
+        if !(self.vehicle && self.p.vehicle == Vehicle::Auto && !self.p.speed_aided) {
+            return;
+        }
+        // decided on the measurements, never on the filter's own
+        // state (a diverged filter must not talk itself out of the
+        // vehicle model): how the roll/pitch rates swing about their
+        // own 3-s mean (a steady rate is a bias of any size, not a
+        // hand), and the tilt of the low-passed specific force
+        let (pb, _) = self.prior;
+        let m = &mut self.xy_rate_mean;
+        let (wx, wy) = (gyro[0] - pb[0] - m[0], gyro[1] - pb[1] - m[1]);
+        let a3 = self.alpha_1s / 3.0;
+        m[0] += wx * a3;
+        m[1] += wy * a3;
+        self.xy_rate2 += (wx * wx + wy * wy - self.xy_rate2) * a3;
+        for i in 0..3 {
+            self.body_f_lp[i] += (accel[i] - self.body_f_lp[i]) * self.alpha_1s;
+        }
+        // a car body never tilts past 45 deg either
+        let upright = -self.body_f_lp[2] > std::f64::consts::FRAC_1_SQRT_2 * norm(&self.body_f_lp);
+        if self.xy_rate2 > self.p.handheld_rate * self.p.handheld_rate || !upright {
+            self.leave_vehicle_model();
+        }
+    }
+
+    /// The unit is not in a vehicle after all. Before a standstill has read
+    /// the bias (powered on in a hand, moving), what the vehicle constraint
+    /// taught is void: the bias goes back to its prior, the tilt opens to
+    /// the low-passed gravity. The velocity is a free unit's.
+    fn leave_vehicle_model(&mut self) {
+        self.vehicle = false;
+        self.gravity_held = 0.0;
+        if !self.bias_known {
+            let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
+            self.decorrelate(&[TH, TH + 1]);
+            for i in 0..2 {
+                self.cov[TH + i][TH + i] = self.cov[TH + i][TH + i].max(a);
+            }
+        }
+        self.free_velocity_and_unread_bias();
+    }
+
+    /// A free unit's velocity (zero, `free_velocity_sigma`) and, while no
+    /// standstill has read it, the prior bias with the prior's sigma (what
+    /// was learned with a wrong tilt or a wrong model is void): what the end
+    /// of the vehicle model and a re-levelling in motion leave.
+    pub(super) fn free_velocity_and_unread_bias(&mut self) {
+        self.decorrelate(&[VE, VE + 1, VE + 2]);
+        self.v = [0.0; 3];
+        for i in 0..3 {
+            self.cov[VE + i][VE + i] = self.p.free_var;
+        }
+        if !self.bias_known {
+            self.decorrelate(&[BI, BI + 1, BI + 2]);
+            let (pb, ps) = self.prior;
+            self.bias = pb;
+            for i in 0..3 {
+                self.cov[BI + i][BI + i] = ps[i] * ps[i];
+            }
+        }
+    }
+
+    /// A unit that is not a vehicle, with a motion walk configured: it
+    /// learns its bias from the low-passed gravity while it moves.
+    #[inline]
+    pub(super) fn learns_in_motion(&self) -> bool {
+        !self.vehicle && self.p.q_bias_motion > 0.0
+    }
+}
