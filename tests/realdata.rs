@@ -19,6 +19,34 @@ fn realdata_dir() -> Option<PathBuf> {
     d.is_dir().then_some(d)
 }
 
+/// The BROAD recordings among `names` that are under the folder of
+/// recordings, each one that is not said; said too when none is (or the
+/// folder is not there).
+fn broad_recordings(names: &[&'static str]) -> Vec<(&'static str, PathBuf)> {
+    let Some(dir) = realdata_dir() else {
+        println!("skipped: ../shared/realdata not found (set GYROCOMP_REALDATA to the folder of recordings)");
+        return Vec::new();
+    };
+    let found: Vec<_> = names
+        .iter()
+        .filter_map(|&name| {
+            let rec = dir.join(name);
+            if !rec.is_dir() {
+                println!("skipped {name}: not found");
+            }
+            rec.is_dir().then_some((name, rec))
+        })
+        .collect();
+    if found.is_empty() {
+        println!("skipped: none of {names:?} is under {}", dir.display());
+    }
+    found
+}
+
+/// The five BROAD recordings of `../shared/realdata`.
+const BROAD: [&str; 5] =
+    ["broad-05-slow-rotation", "broad-14-slow-translation", "broad-18-fast-translation", "broad-27-vibration", "broad-33-magnet-2cm"];
+
 #[test]
 fn realdata_table_ours_and_vqf() {
     let Some(dir) = realdata_dir() else {
@@ -275,19 +303,9 @@ fn a_turn_on_bias_of_several_deg_per_s_changes_nothing_after_the_first_rest() {
     use gyrocomp::config::Config;
     use gyrocomp::reference::realdata::evaluate_recording;
     use gyrocomp::reference::RefOptions;
-    let Some(dir) = realdata_dir() else {
-        println!("skipped: ../shared/realdata not found (set GYROCOMP_REALDATA to the folder of recordings)");
-        return;
-    };
     let extra = [3.0, -2.0, 4.0];
     let tmp = tempfile::tempdir().unwrap();
-    let mut n = 0;
-    for name in ["broad-05-slow-rotation", "broad-18-fast-translation", "broad-33-magnet-2cm"] {
-        let rec = dir.join(name);
-        if !rec.is_dir() {
-            println!("skipped {name}: not found");
-            continue;
-        }
+    for (name, rec) in broad_recordings(&["broad-05-slow-rotation", "broad-18-fast-translation", "broad-33-magnet-2cm"]) {
         // the same recording, every gyro reading shifted by `extra`
         let biased = tmp.path().join(name);
         std::fs::create_dir(&biased).unwrap();
@@ -315,10 +333,6 @@ fn a_turn_on_bias_of_several_deg_per_s_changes_nothing_after_the_first_rest() {
         );
         assert!((ours_b - ours).abs() < 0.02, "{name}: ours {ours} -> {ours_b}");
         assert!(ours_b < vqf_b, "{name}: ours {ours_b} against VQF {vqf_b}");
-        n += 1;
-    }
-    if n == 0 {
-        println!("skipped: none of the three BROAD recordings is under {}", dir.display());
     }
 }
 
@@ -338,20 +352,8 @@ fn powered_on_in_a_moving_hand_no_recording_diverges() {
     use gyrocomp::config::Config;
     use gyrocomp::reference::realdata::evaluate_recording;
     use gyrocomp::reference::RefOptions;
-    let Some(dir) = realdata_dir() else {
-        println!("skipped: ../shared/realdata not found (set GYROCOMP_REALDATA to the folder of recordings)");
-        return;
-    };
     let tmp = tempfile::tempdir().unwrap();
-    let mut n = 0;
-    for name in
-        ["broad-05-slow-rotation", "broad-14-slow-translation", "broad-18-fast-translation", "broad-27-vibration", "broad-33-magnet-2cm"]
-    {
-        let rec = dir.join(name);
-        if !rec.is_dir() {
-            println!("skipped {name}: not found");
-            continue;
-        }
+    for (name, rec) in broad_recordings(&BROAD) {
         let reference = read_gz(&rec.join("reference.csv.gz"));
         let header: Vec<&str> = reference.lines().next().unwrap().split(',').collect();
         let (ti, ri) = (0, header.iter().position(|h| *h == "rest").expect("a rest column"));
@@ -403,10 +405,6 @@ fn powered_on_in_a_moving_hand_no_recording_diverges() {
         for (axis, o, v) in [("roll", ours.roll.rms, vqf.roll.rms), ("pitch", ours.pitch.rms, vqf.pitch.rms)] {
             assert!(o < 1.25 * v, "{name}: {axis} RMS ours {o} against VQF's {v}");
         }
-        n += 1;
-    }
-    if n == 0 {
-        println!("skipped: no BROAD recording under {}", dir.display());
     }
 }
 
@@ -429,10 +427,6 @@ fn any_mounting_leaves_the_tilt_error_as_it_was() {
     use gyrocomp::estimator::quat::{euler, matrix_from_euler};
     use gyrocomp::reference::realdata::evaluate_recording;
     use gyrocomp::reference::RefOptions;
-    let Some(dir) = realdata_dir() else {
-        println!("skipped: ../shared/realdata not found (set GYROCOMP_REALDATA to the folder of recordings)");
-        return;
-    };
     const D2R: f64 = std::f64::consts::PI / 180.0;
     let mounts: [(&str, [f64; 3]); 4] = [
         ("upside down", [180.0, 0.0, 0.0]),
@@ -441,15 +435,7 @@ fn any_mounting_leaves_the_tilt_error_as_it_was() {
         ("45/-60/30", [45.0, -60.0, 30.0]),
     ];
     let tmp = tempfile::tempdir().unwrap();
-    let mut n = 0;
-    for name in
-        ["broad-05-slow-rotation", "broad-14-slow-translation", "broad-18-fast-translation", "broad-27-vibration", "broad-33-magnet-2cm"]
-    {
-        let rec = dir.join(name);
-        if !rec.is_dir() {
-            println!("skipped {name}: not found");
-            continue;
-        }
+    for (name, rec) in broad_recordings(&BROAD) {
         // tilt RMS ours, VQF; and "roll/pitch RMS ours, VQF"
         let mut split = String::new();
         let mut tilt = |d: &std::path::Path, label: &str| {
@@ -510,9 +496,5 @@ fn any_mounting_leaves_the_tilt_error_as_it_was() {
             assert!(ours < 1.05 * vqf, "{name} mounted {label}: ours' tilt RMS {ours} deg against VQF's {vqf}");
         }
         println!("{line}\n{split}");
-        n += 1;
-    }
-    if n == 0 {
-        println!("skipped: no BROAD recording under {}", dir.display());
     }
 }
