@@ -141,10 +141,13 @@ impl Mekf {
         for i in 0..N {
             k[i] = u[i] / s;
         }
-        let full = gain.tilt && gain.bias;
+        let full = gain.tilt && gain.heading && gain.bias;
         if !gain.tilt {
             k[TH] = 0.0;
             k[TH + 1] = 0.0;
+        }
+        if !gain.heading {
+            k[TH + 2] = 0.0;
         }
         if !gain.bias {
             k[BI] = 0.0;

@@ -22,7 +22,13 @@ impl Mekf {
     /// rear axle) or, for a unit that is not a vehicle, a bounded velocity.
     /// Returns (fused any, gated any).
     pub(super) fn velocity_updates(&mut self, omega: &[f64; 3], learn: bool, gate: f64) -> (bool, bool) {
-        let gain = Gain { tilt: true, bias: learn, velocity: false };
+        let gain = Gain { tilt: true, heading: true, bias: learn, velocity: false };
+        // A free unit's bounded velocity tells the heading (through the
+        // horizontal accelerations) only about a heading already known: with
+        // one wide open (powered on in motion, re-acquired) its linearisation
+        // turned broad-18, cut 5 s into its motion, 75-180 deg off.
+        let open = self.cov[TH + 2][TH + 2] > FREE_HEADING_SIGMA * FREE_HEADING_SIGMA;
+        let vgain = if !self.vehicle && open { Gain { heading: false, ..gain } } else { gain };
         let mut fused = false;
         let mut gated = false;
         let mut note = |u: Upd| match u {
@@ -36,10 +42,21 @@ impl Mekf {
                 note(u);
             }
         }
+        let mut refused = false;
         for &i in axes {
             let (nu, h) = self.body_velocity_row(i, omega);
-            let u = self.update(&h, -nu, var, Gain { velocity: true, ..gain }, gate);
+            let u = self.update(&h, -nu, var, Gain { velocity: true, ..vgain }, gate);
+            refused |= u == Upd::Gated;
             note(u);
+        }
+        // A unit that goes nowhere on average cannot be many m/s away from
+        // standing: a velocity its bound refuses was integrated from a
+        // wrong tilt (powered on in motion), and through the attitude rows
+        // of that bound it would turn the heading by tens of degrees
+        // (broad-18 cut 5 s into its motion: 100 m/s, the heading thrown
+        // 180 deg). It is the free velocity again.
+        if refused && !self.vehicle {
+            self.free_velocity();
         }
         // No road has a car climb or descend faster than `max_vertical_speed`:
         // a vertical velocity beyond it is a pitch error integrated into a
@@ -89,7 +106,7 @@ impl Mekf {
     /// measured with that tilt too.
     pub(super) fn relevel_free(&mut self) {
         self.gravity_held = 0.0;
-        self.provisional = false;
+        self.tilt_settled = false;
         let Some(nu) = self.gravity_lp_innovation() else { return };
         // the whole turn, as an error state: (dθ_x, dθ_y) from the
         // innovations (dθ_y, -dθ_x); `inject` turns the attitude and the
@@ -151,7 +168,7 @@ impl Mekf {
         let (val, mut h) = self.body_velocity_row(0, omega);
         h[SC] = -vw;
         let nu = vw * (1.0 + self.scale) - val;
-        self.update(&h, nu, self.p.speed_var, Gain { tilt: true, bias: learn, velocity: true }, gate)
+        self.update(&h, nu, self.p.speed_var, Gain { tilt: true, heading: true, bias: learn, velocity: true }, gate)
     }
 
     /// Heading from the magnetometer. Some(fused) or None when disturbed.
@@ -211,7 +228,7 @@ impl Mekf {
         h[TH] = mn[0] * mn[2] / h2;
         h[TH + 1] = mn[1] * mn[2] / h2;
         h[TH + 2] = -1.0;
-        let u = self.update(&h, nu, self.p.yaw_var, Gain { tilt: false, bias: learn, velocity: false }, gate);
+        let u = self.update(&h, nu, self.p.yaw_var, Gain { tilt: false, heading: true, bias: learn, velocity: false }, gate);
         // an undisturbed field refused for long: the heading, not the field,
         // is wrong (it was set with a wrong tilt, or drifted with a wrong z
         // bias); open it to what the field says, never a lock-out

@@ -73,6 +73,9 @@ const BIAS_LIMIT_SIGMAS: f64 = 4.0;
 /// Seconds of refused heading updates (field not disturbed) after which
 /// the heading is opened to what the field says.
 const HEADING_REACQUIRE_S: f64 = 5.0;
+/// A free unit's bounded velocity moves the heading only while the
+/// heading's 1-sigma is within this (rad).
+const FREE_HEADING_SIGMA: f64 = 5.0 * D2R;
 /// A unit that is not a vehicle, powered on in motion (no standstill has
 /// read its bias): once its low-passed gravity has been taken without a
 /// break for this long, its tilt has settled on it and a steady residual is
@@ -122,6 +125,8 @@ enum Upd {
 struct Gain {
     /// The tilt (dθ_x, dθ_y).
     tilt: bool,
+    /// The heading (dθ_z).
+    heading: bool,
     bias: bool,
     /// A measurement of the velocity: scored for the power-on speed
     /// hypotheses (`super::hypotheses`) while scoring.
@@ -232,8 +237,10 @@ pub struct Mekf {
     /// Seconds the free unit's low-passed gravity has been fused without a
     /// break since the last start, re-level or end of the vehicle model.
     gravity_held: f64,
-    /// The bias's variance has been capped for provisional learning.
-    provisional: bool,
+    /// Not a vehicle, no bias read yet: the tilt has settled on the
+    /// low-passed gravity since the last start or re-level (the field's
+    /// dip re-taken, the bias learned in motion provisionally).
+    tilt_settled: bool,
     /// Speed and its sigma when the unit became still (m/s).
     still_speed: Option<(f64, f64)>,
     /// A counter gap happened and no still period has ended since.
@@ -311,7 +318,7 @@ impl Mekf {
             nhc_refused: 0.0,
             gravity_refused: 0.0,
             gravity_held: 0.0,
-            provisional: false,
+            tilt_settled: false,
             still_speed: None,
             after_gap: false,
             heading_open: false,
@@ -620,7 +627,7 @@ impl Mekf {
         self.v = [0.0; 3];
         self.scale = 0.0;
         self.gravity_held = 0.0;
-        self.provisional = false;
+        self.tilt_settled = false;
         self.cov = [[0.0; N]; N];
         let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
         for i in 0..3 {

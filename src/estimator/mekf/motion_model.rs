@@ -55,11 +55,7 @@ impl Mekf {
     /// was learned with a wrong tilt or a wrong model is void): what the end
     /// of the vehicle model and a re-levelling in motion leave.
     pub(super) fn free_velocity_and_unread_bias(&mut self) {
-        self.decorrelate(&[VE, VE + 1, VE + 2]);
-        self.v = [0.0; 3];
-        for i in 0..3 {
-            self.cov[VE + i][VE + i] = self.p.free_var;
-        }
+        self.free_velocity();
         if !self.bias_known {
             self.decorrelate(&[BI, BI + 1, BI + 2]);
             let (pb, ps) = self.prior;
@@ -67,6 +63,16 @@ impl Mekf {
             for i in 0..3 {
                 self.cov[BI + i][BI + i] = ps[i] * ps[i];
             }
+        }
+    }
+
+    /// A free unit's velocity: zero, `free_velocity_sigma`, uncorrelated.
+    pub(super) fn free_velocity(&mut self) {
+        self.decorrelate(&[VE, VE + 1, VE + 2]);
+        self.v = [0.0; 3];
+        for i in 0..3 {
+            self.dx[VE + i] = 0.0;
+            self.cov[VE + i][VE + i] = self.p.free_var;
         }
     }
 

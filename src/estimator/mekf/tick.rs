@@ -75,11 +75,19 @@ impl Mekf {
         // is the bias's, learned provisionally from a sigma brought down to
         // `PROVISIONAL_BIAS_SIGMA` (the cut broad-27's 0.46 deg/s x bias had
         // held its roll 1.3 deg off for the 100 s to its first rest).
-        if !self.bias_known && !self.provisional && self.learns_in_motion() && self.gravity_held >= PROVISIONAL_SETTLE_S {
-            self.provisional = true;
-            self.shrink(&[BI, BI + 1, BI + 2], PROVISIONAL_BIAS_SIGMA);
+        if !self.bias_known && !self.vehicle && !self.tilt_settled && self.gravity_held >= PROVISIONAL_SETTLE_S {
+            self.tilt_settled = true;
+            // the field's dip, taken with the tilt before it settled, made
+            // every later field look disturbed (broad-18 cut 5 s into its
+            // motion: heading 75 deg off until its first rest, 33 s on)
+            if self.mag_ref_weak {
+                self.mag_ref = None;
+            }
+            if self.learns_in_motion() {
+                self.shrink(&[BI, BI + 1, BI + 2], PROVISIONAL_BIAS_SIGMA);
+            }
         }
-        let learns_in_motion = self.learns_in_motion() && (self.bias_known || self.provisional);
+        let learns_in_motion = self.learns_in_motion() && (self.bias_known || self.tilt_settled);
         let learn_gravity = (a.quasi || learns_in_motion) && !a.suspect;
         let learn = !a.suspect;
         if still {
@@ -207,7 +215,7 @@ impl Mekf {
     fn still_updates(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome) {
         let n = a.n as f64;
         let gate = self.p.gate;
-        let all = Gain { tilt: true, bias: true, velocity: false };
+        let all = Gain { tilt: true, heading: true, bias: true, velocity: false };
         let note = |u: Upd, o: &mut Outcome| match u {
             Upd::Fused => {
                 o.fused = true;
