@@ -235,7 +235,8 @@ pub struct Mekf {
     /// Seconds the free unit's low-passed gravity has been refused without a break.
     gravity_refused: f64,
     /// Seconds the free unit's low-passed gravity has been fused without a
-    /// break since the last start, re-level or end of the vehicle model.
+    /// break since the last start or re-level (0 under the vehicle model,
+    /// which fuses no such gravity).
     gravity_held: f64,
     /// Not a vehicle, no bias read yet: the tilt has settled on the
     /// low-passed gravity since the last start or re-level (the field's
@@ -255,7 +256,7 @@ pub struct Mekf {
     /// A bias is known (a rest was seen or a prior given).
     bias_known: bool,
     /// The vehicle model is in use; the x/y body rates' 3-s mean (rad/s)
-    /// and the 1-s low-pass of their squared deviation from it.
+    /// and the 3-s low-pass of their squared deviation from it.
     vehicle: bool,
     xy_rate_mean: [f64; 2],
     xy_rate2: f64,

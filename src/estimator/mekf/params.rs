@@ -46,8 +46,8 @@ pub struct MekfParams {
     pub max_vertical_speed: f64,
     /// Whether the unit is in a ground vehicle.
     pub vehicle: Vehicle,
-    /// `Vehicle::Auto`: the low-passed (1 s) RMS of the body x/y rates above
-    /// which the unit is not in a ground vehicle (rad/s).
+    /// `Vehicle::Auto`: the RMS over 3 s of the body x/y rates' swing about
+    /// their 3-s mean above which the unit is not in a ground vehicle (rad/s).
     pub handheld_rate: f64,
     /// Velocity variance of a bounded-velocity unit (hand-held): applied on
     /// all axes when not a vehicle.
