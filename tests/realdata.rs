@@ -43,6 +43,19 @@ fn broad_recordings(names: &[&'static str]) -> Vec<(&'static str, PathBuf)> {
     found
 }
 
+/// `text`, a CSV with a header, gzip-compressed to `p`, each row's fields
+/// changed by `edit` first.
+fn write_csv_gz(p: &std::path::Path, text: &str, mut edit: impl FnMut(&mut [String])) {
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let rows = lines.map(|line| {
+        let mut f: Vec<String> = line.split(',').map(String::from).collect();
+        edit(&mut f);
+        f.join(",").into()
+    });
+    write_gz(p, std::iter::once(header.into()).chain(rows));
+}
+
 /// The five BROAD recordings of `../shared/realdata`.
 const BROAD: [&str; 5] =
     ["broad-05-slow-rotation", "broad-14-slow-translation", "broad-18-fast-translation", "broad-27-vibration", "broad-33-magnet-2cm"];
@@ -312,15 +325,12 @@ fn a_turn_on_bias_of_several_deg_per_s_changes_nothing_after_the_first_rest() {
         let text = read_gz(&rec.join("imu.csv.gz"));
         let header = text.lines().next().unwrap();
         assert!(header.starts_with("t,gx,gy,gz,"), "{name}: header {header}");
-        let rows = text.lines().skip(1).map(|line| {
-            let mut f: Vec<String> = line.split(',').map(str::to_string).collect();
+        write_csv_gz(&biased.join("imu.csv.gz"), &text, |f| {
             for i in 0..3 {
                 let v: f64 = f[1 + i].parse().unwrap();
                 f[1 + i] = format!("{}", v + extra[i]);
             }
-            f.join(",").into()
         });
-        write_gz(&biased.join("imu.csv.gz"), std::iter::once(header.into()).chain(rows));
         std::fs::copy(rec.join("reference.csv.gz"), biased.join("reference.csv.gz")).unwrap();
         let tilt = |d: &std::path::Path| {
             let r = evaluate_recording(d, &Config::default(), &RefOptions::default()).unwrap();
@@ -475,21 +485,17 @@ fn any_mounting_leaves_the_tilt_error_as_it_was() {
             // the sensor frame in the rig's: v_sensor = M^T v_rig, C_ns = C_nb M
             let m = matrix_from_euler(r * D2R, p * D2R, y * D2R);
             let turn = |v: [f64; 3]| std::array::from_fn::<f64, 3, _>(|i| (0..3).map(|k| m[k][i] * v[k]).sum());
-            let rows = imu.lines().skip(1).map(|l| {
-                let mut f: Vec<String> = l.split(',').map(String::from).collect();
+            let turned = tmp.path().join(format!("{name}-{}", label.replace(['/', ' '], "_")));
+            std::fs::create_dir(&turned).unwrap();
+            write_csv_gz(&turned.join("imu.csv.gz"), &imu, |f| {
                 for c in [1, 4, 7] {
                     let v = turn(std::array::from_fn(|i| f[c + i].parse::<f64>().unwrap()));
                     for i in 0..3 {
                         f[c + i] = format!("{:.7}", v[i]);
                     }
                 }
-                f.join(",").into()
             });
-            let turned = tmp.path().join(format!("{name}-{}", label.replace(['/', ' '], "_")));
-            std::fs::create_dir(&turned).unwrap();
-            write_gz(&turned.join("imu.csv.gz"), std::iter::once(imu.lines().next().unwrap().into()).chain(rows));
-            let rows = reference.lines().skip(1).map(|l| {
-                let mut f: Vec<String> = l.split(',').map(String::from).collect();
+            write_csv_gz(&turned.join("reference.csv.gz"), &reference, |f| {
                 if let (Ok(rr), Ok(pr), Ok(yr)) = (f[1].parse::<f64>(), f[2].parse::<f64>(), f[3].parse::<f64>()) {
                     let c = matrix_from_euler(rr * D2R, pr * D2R, yr * D2R);
                     let cs: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| c[i][k] * m[k][j]).sum()));
@@ -498,9 +504,7 @@ fn any_mounting_leaves_the_tilt_error_as_it_was() {
                         f[1 + i] = format!("{:.6}", e[i] / D2R);
                     }
                 }
-                f.join(",").into()
             });
-            write_gz(&turned.join("reference.csv.gz"), std::iter::once(reference.lines().next().unwrap().into()).chain(rows));
             let (ours, vqf) = tilt(&turned, label);
             line += &format!(", {label} {ours:.3}/{vqf:.3}");
             if label == "nose up" {
