@@ -209,14 +209,10 @@ fn profile_scales_where_they_cover_the_data_and_axes_maps() {
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("reflection"));
 }
 
-#[test]
-fn another_bus_is_merged_by_timestamp() {
-    let d = tempfile::tempdir().unwrap();
-    let r = recording(200);
-    let csv = d.path().join("a.csv");
-    std::fs::write(&csv, csv_text(&r, HEADER, full_row)).unwrap();
-    // a car's bus on the same clock (t + epoch): 0x0B4 every 7 ms, an extended
-    // frame, a remote frame, from before the IMU's first sample to after its last
+/// A car's bus on the recording's clock (t + epoch): 0x0B4 every 7 ms, an
+/// extended frame, a remote frame, from before the IMU's first sample
+/// (3.25 s) to after its last.
+fn car_bus() -> String {
     let mut car = String::new();
     let mut n_car = 0;
     let mut tc = 3.2;
@@ -228,6 +224,16 @@ fn another_bus_is_merged_by_timestamp() {
         n_car += 1;
         tc += 0.007;
     }
+    car
+}
+
+#[test]
+fn another_bus_is_merged_by_timestamp() {
+    let d = tempfile::tempdir().unwrap();
+    let r = recording(200);
+    let csv = d.path().join("a.csv");
+    std::fs::write(&csv, csv_text(&r, HEADER, full_row)).unwrap();
+    let car = car_bus();
     let car_p = d.path().join("car.log");
     std::fs::write(&car_p, &car).unwrap();
     let (log, snip) = (d.path().join("o.log"), d.path().join("o.toml"));
@@ -254,6 +260,48 @@ fn another_bus_is_merged_by_timestamp() {
     let o = import(&["--csv", p(&csv), "--out", p(&log), "--can", p(&car_p)]);
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && e.contains("car.log line 2"), "{e}");
+}
+
+/// `--from S`: the unit powered on at S (a daemon restarted while moving).
+/// The log holds the samples from S on, on the recording's clock, and the
+/// car's lines from the first of them on; they decode as the recording cut
+/// there by hand would. A `--from` past the end is refused, naming it, and
+/// writes nothing.
+#[test]
+fn from_powers_the_unit_on_later_with_the_car_bus_from_then_on() {
+    let d = tempfile::tempdir().unwrap();
+    let r = recording(200);
+    let csv = d.path().join("a.csv");
+    std::fs::write(&csv, csv_text(&r, HEADER, full_row)).unwrap();
+    let car = car_bus();
+    let car_p = d.path().join("car.log");
+    std::fs::write(&car_p, &car).unwrap();
+    let (log, snip) = (d.path().join("o.log"), d.path().join("o.toml"));
+    let err = ok(&import(&["--csv", p(&csv), "--out", p(&log), "--config-out", p(&snip), "--can", p(&car_p), "--from", "4.0"]));
+    let k0 = r.t.iter().position(|t| *t >= 4.0).unwrap();
+    assert_eq!(k0, 75);
+    let cut = Rec { t: r.t[k0..].to_vec(), v: r.v[k0..].to_vec() };
+    let text = std::fs::read_to_string(&log).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let first_imu = gyrocomp::candump::parse_line(lines[0].as_bytes()).unwrap().t_us;
+    assert_eq!(first_imu, 1_700_000_000_000_000 + (cut.t[0] * 1e6).round() as u64, "the log starts at the first sample kept");
+    // the car's lines from the first sample on, verbatim and in order
+    let stamp = |l: &str| gyrocomp::candump::parse_line(l.as_bytes()).unwrap().t_us;
+    let car_after: Vec<&str> = car.lines().filter(|l| stamp(l) >= first_imu).collect();
+    let imu = |l: &str| ["100#", "101#", "102#", "103#"].iter().any(|id| l.contains(&format!("can0 {id}")));
+    assert_eq!(lines.iter().copied().filter(|l| !imu(l)).collect::<Vec<_>>(), car_after);
+    assert_eq!(lines.len(), 4 * cut.t.len() + car_after.len());
+    let before = car.lines().count() - car_after.len();
+    assert!(before > 0 && err.contains(&format!("{before} of its lines before the first sample left out")), "{err}");
+    assert!(err.contains("the first sample is t = 4"), "{err}");
+    let (cfg, samples) = replayed(&log, &snip);
+    check_round_trip(&cut, &cfg, &samples, true, true);
+    // past the end: refused, nothing written
+    let log2 = d.path().join("late.log");
+    let o = import(&["--csv", p(&csv), "--out", p(&log2), "--from", "99"]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("--from 99") && e.contains("ends at t = 5.44"), "{e}");
+    assert!(!log2.exists());
 }
 
 /// Each kind of bad input: a clear error naming the line and the column,

@@ -169,7 +169,7 @@ fn gaps_are_not_scored_and_without_rest_the_first_seconds_align() {
     let shifted = d.path().join("shifted.csv");
     write_ref(&shifted, &rows.iter().map(|(t, a)| (t + 1000.0, *a)).collect::<Vec<_>>(), false, &|_| false, "");
     let r = read_reference(&shifted).unwrap();
-    let o = RefOptions { skip: 10.0, align_s: 3.0, offset: 1000.0, force_align: true, peers: true };
+    let o = RefOptions { skip: 10.0, align_s: 3.0, offset: 1000.0, force_align: true, peers: true, power_on_at: None };
     let ev_shift = evaluate_samples(&samples, &cfg, &r, &o).unwrap();
     for (x, y) in ev_shift.results.iter().zip(&ev_full.results) {
         let (a, b) = (&x.scores, &y.scores);
@@ -356,4 +356,51 @@ fn realdata_recordings_on_any_clock_and_a_bad_one_does_not_stop_the_others() {
     assert_eq!(a, b, "the shifted clock scored differently");
     // the mount was found in the shifted one too (MOUNT, within the digits printed)
     assert!(b.split_whitespace().last().unwrap().trim_end_matches('*').parse::<f64>().unwrap() > 1.0, "{b}");
+}
+
+/// `--realdata --power-on-at S`: both estimators powered on S s into each
+/// recording score exactly as the same recording cut there by hand (its
+/// samples and reference rows from S on); the table says so. Past a
+/// recording's end it is named as not evaluated; without --realdata the
+/// option is refused.
+#[test]
+fn realdata_power_on_at_scores_as_the_recording_cut_by_hand() {
+    let d = tempfile::tempdir().unwrap();
+    let (_, samples, truth) = sim(&d.path().join("run"));
+    let rows = reference_rows(&truth);
+    let write = |root: &Path, from: f64| {
+        let dir = root.join("rec");
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut imu = String::from("t,gx,gy,gz,ax,ay,az,mx,my,mz,temp\n");
+        for (s, tr) in samples.iter().zip(&truth).filter(|(_, tr)| tr.t >= from) {
+            let v: Vec<String> = [s.gyro, s.accel, s.magn].concat().iter().map(|x| format!("{x:.7}")).collect();
+            imu += &format!("{:.6},{},{:.3}\n", tr.t, v.join(","), s.temp);
+        }
+        let mut reference = String::from("t,roll,pitch,yaw,valid,rest\n");
+        for (t, a) in rows.iter().filter(|(t, _)| *t >= from) {
+            reference += &format!("{t:.6},{:.6},{:.6},{:.6},1,{}\n", a[0], a[1], a[2], (*t < 3.0) as u8);
+        }
+        for (file, text) in [("imu.csv.gz", imu), ("reference.csv.gz", reference)] {
+            common::write_gz(&dir.join(file), text.lines().map(Into::into));
+        }
+    };
+    let (whole, cut) = (d.path().join("whole"), d.path().join("cut"));
+    write(&whole, f64::NEG_INFINITY);
+    write(&cut, 40.0);
+    let table = |o: &std::process::Output| -> String {
+        let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+        assert!(o.status.success(), "{out}{err}");
+        let i = out.find("\nrec ").unwrap_or_else(|| panic!("no row: {out}"));
+        out[i + 1..].lines().take(2).collect::<Vec<_>>().join("\n")
+    };
+    let o = run(&["evaluate", "--realdata", p(&whole), "--power-on-at", "40"]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("powered on 40 s into each recording"));
+    let later = table(&o);
+    assert_eq!(later, table(&run(&["evaluate", "--realdata", p(&cut)])), "not the recording cut by hand");
+    assert_ne!(later, table(&run(&["evaluate", "--realdata", p(&whole)])), "the option changed nothing");
+    let o = run(&["evaluate", "--realdata", p(&whole), "--power-on-at", "500"]);
+    let out = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && out.contains("rec") && out.contains("no sample at or after --from 500"), "{out}");
+    let o = run(&["evaluate", "--input", p(&d.path().join("run")), "--power-on-at", "40"]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--realdata"));
 }

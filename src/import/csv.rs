@@ -124,6 +124,21 @@ impl ImuCsv {
     pub fn is_empty(&self) -> bool {
         self.t.is_empty()
     }
+
+    /// Keep the samples at and after `t0` (s, the recording's clock).
+    pub fn keep_from(&mut self, t0: f64) {
+        let k = self.t.iter().position(|t| *t >= t0).unwrap_or(self.t.len());
+        self.line.drain(..k);
+        self.t.drain(..k);
+        self.gyro.drain(..k);
+        self.accel.drain(..k);
+        if let Some(m) = self.magn.as_mut() {
+            m.drain(..k);
+        }
+        if let Some(x) = self.temp.as_mut() {
+            x.drain(..k);
+        }
+    }
 }
 
 /// Parse one field: empty -> None, a finite number -> Some, else an error.

@@ -161,12 +161,18 @@ pub struct LogStats {
     pub imu_frames: u64,
     /// Lines merged from the other bus's log.
     pub merged_lines: u64,
+    /// Lines of the other bus's log before the first sample, left out
+    /// (`--from`: the unit was not on yet).
+    pub merged_before: u64,
 }
 
 /// Another bus's candump log, merged line by line.
 pub struct Merge<'a> {
     pub name: String,
     pub reader: Box<dyn BufRead + 'a>,
+    /// Leave out its lines stamped before the first sample (`--from`: the
+    /// unit was not on yet).
+    pub drop_before: bool,
 }
 
 /// One pending line of the merged log.
@@ -218,9 +224,9 @@ pub fn write_log<W: Write>(
     let spacing = (period_us / 4.0).floor().clamp(0.0, 120.0) as u64;
     let mut st = LogStats::default();
     let mut buf: Vec<u8> = Vec::with_capacity(1 << 20);
-    let (mut mr, mname) = match merge {
-        Some(m) => (Some(LineReader::new(m.reader)), m.name),
-        None => (None, String::new()),
+    let (mut mr, mname, drop_before) = match merge {
+        Some(m) => (Some(LineReader::new(m.reader)), m.name, m.drop_before),
+        None => (None, String::new(), false),
     };
     let mut pending = match mr.as_mut() {
         Some(r) => next_merge_line(r, &mname, &ids)?,
@@ -248,9 +254,13 @@ pub fn write_log<W: Write>(
                 if pd.t_us > ft {
                     break;
                 }
-                buf.extend_from_slice(&pd.line);
-                buf.push(b'\n');
-                st.merged_lines += 1;
+                if drop_before && st.imu_frames == 0 && pd.t_us < ft {
+                    st.merged_before += 1;
+                } else {
+                    buf.extend_from_slice(&pd.line);
+                    buf.push(b'\n');
+                    st.merged_lines += 1;
+                }
                 pending = next_merge_line(r, &mname, &ids)?;
             }
             write_line(&mut buf, ft, iface.as_bytes(), ids.all()[i], d);

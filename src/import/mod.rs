@@ -74,6 +74,12 @@ pub struct ImportArgs {
     /// Log time of t = 0, s since 1970.
     #[arg(long, default_value_t = crate::sim::LOG_EPOCH_S)]
     pub epoch: u64,
+    /// Leave out the samples before this t (s, the recording's clock), and
+    /// the merged log's lines before the first sample kept: the unit powered
+    /// on there (a daemon restarted while moving). Default: from the first
+    /// sample.
+    #[arg(long, value_name = "S", allow_hyphen_values = true)]
+    pub from: Option<f64>,
 }
 
 /// Options of an import (the args without the output paths).
@@ -84,11 +90,20 @@ pub struct ImportOptions {
     pub axes: AxesMap,
     pub iface: String,
     pub epoch: u64,
+    /// Samples before this t are left out (`--from`).
+    pub from: Option<f64>,
 }
 
 impl Default for ImportOptions {
     fn default() -> Self {
-        ImportOptions { rate: None, profile: None, axes: AxesMap::IDENTITY, iface: "can0".into(), epoch: crate::sim::LOG_EPOCH_S }
+        ImportOptions {
+            rate: None,
+            profile: None,
+            axes: AxesMap::IDENTITY,
+            iface: "can0".into(),
+            epoch: crate::sim::LOG_EPOCH_S,
+            from: None,
+        }
     }
 }
 
@@ -101,6 +116,11 @@ impl ImportOptions {
         }
         if !self.axes.is_rotation() {
             return Err("--axes: the map is a reflection (it would turn a right-handed frame left-handed); flip one more sign".into());
+        }
+        if let Some(f) = self.from {
+            if !f.is_finite() {
+                return Err(format!("--from must be a finite number of seconds, got {f}"));
+            }
         }
         if self.iface.is_empty() || self.iface.len() > 15 || self.iface.contains(char::is_whitespace) {
             return Err(format!("--iface {:?}: want an interface name of 1 to 15 characters without spaces", self.iface));
@@ -164,7 +184,11 @@ impl Imported {
             if self.has_temp { "recorded" } else { "absent (thermal curve off in the snippet)" },
             if self.ignored.is_empty() { String::new() } else { format!("; ignored columns: {}", self.ignored.join(", ")) }
         );
-        s += &format!("frames: {} IMU, {} merged from the other log\n", self.log.imu_frames, self.log.merged_lines);
+        s += &format!("frames: {} IMU, {} merged from the other log", self.log.imu_frames, self.log.merged_lines);
+        if self.log.merged_before > 0 {
+            s += &format!(" ({} of its lines before the first sample left out)", self.log.merged_before);
+        }
+        s += "\n";
         if self.t0 != 0.0 {
             s += &format!(
                 "the first sample is t = {} s in the CSV (the log's sample clock starts at 0): score it against a reference on the CSV's clock with `evaluate --offset {}`\n",
@@ -223,9 +247,17 @@ pub fn overlay(base: &Config, snippet: &str, origin: &str) -> Result<Config, Str
 pub fn import_to<W: Write>(csv: &Path, o: &ImportOptions, merge: Option<Merge<'_>>, out: &mut W) -> Result<Imported, String> {
     o.check()?;
     let src = csv.display().to_string();
-    let data = read_imu_csv(csv, &o.axes)?;
+    let mut data = read_imu_csv(csv, &o.axes)?;
+    if let Some(f) = o.from {
+        let end = data.t[data.len() - 1];
+        data.keep_from(f);
+        if data.is_empty() {
+            return Err(format!("{src}: no sample at or after --from {f} s (the recording ends at t = {end} s)"));
+        }
+    }
     let scales = choose_scales(&data, o.profile.as_deref())?;
     let timing = plan_counter(&data, o.rate, &src)?;
+    let merge = merge.map(|m| Merge { drop_before: o.from.is_some(), ..m });
     let log = write_log(out, &data, &scales, &timing, o.epoch * 1_000_000, &o.iface, merge).map_err(|e| {
         if e.starts_with("line ") {
             format!("{src} {e}")
@@ -254,7 +286,7 @@ pub fn import_to<W: Write>(csv: &Path, o: &ImportOptions, merge: Option<Merge<'_
 /// Import into memory: the log's bytes and what the import did.
 pub fn import_to_memory(csv: &Path, can: Option<&Path>, o: &ImportOptions) -> Result<(Vec<u8>, Imported), String> {
     let merge = match can {
-        Some(p) => Some(Merge { name: p.display().to_string(), reader: open_text(p)? }),
+        Some(p) => Some(Merge { name: p.display().to_string(), reader: open_text(p)?, drop_before: false }),
         None => None,
     };
     let mut buf = Vec::new();
@@ -264,8 +296,14 @@ pub fn import_to_memory(csv: &Path, can: Option<&Path>, o: &ImportOptions) -> Re
 
 /// `gyrocomp import`.
 pub fn run(a: &ImportArgs) -> Result<(), String> {
-    let o =
-        ImportOptions { rate: a.rate, profile: a.profile.clone(), axes: AxesMap::parse(&a.axes)?, iface: a.iface.clone(), epoch: a.epoch };
+    let o = ImportOptions {
+        rate: a.rate,
+        profile: a.profile.clone(),
+        axes: AxesMap::parse(&a.axes)?,
+        iface: a.iface.clone(),
+        epoch: a.epoch,
+        from: a.from,
+    };
     let mut inputs: Vec<&Path> = vec![&a.csv];
     if let Some(c) = &a.can {
         inputs.push(c);
@@ -276,7 +314,7 @@ pub fn run(a: &ImportArgs) -> Result<(), String> {
     }
     refuse_inputs_as_outputs(&inputs, &outputs)?;
     let merge = match &a.can {
-        Some(p) => Some(Merge { name: p.display().to_string(), reader: open_text(p)? }),
+        Some(p) => Some(Merge { name: p.display().to_string(), reader: open_text(p)?, drop_before: false }),
         None => None,
     };
     let oerr = |p: &Path| {

@@ -61,6 +61,12 @@ pub struct ReferenceArgs {
     /// motion). Given, the mount is taken from them whatever they look like.
     #[arg(long, value_name = "S")]
     pub align_s: Option<f64>,
+    /// With --realdata: power both estimators on S seconds into each
+    /// recording (on its own clock); the samples, the car's frames and the
+    /// reference rows before are left out, as for a daemon restarted while
+    /// moving. --score-from counts from there. Default: from the first sample.
+    #[arg(long, value_name = "S")]
+    pub power_on_at: Option<f64>,
 }
 
 impl ReferenceArgs {
@@ -80,11 +86,13 @@ pub struct RefOptions {
     /// when they do not look like rest (`--align-s` given).
     pub force_align: bool,
     pub peers: bool,
+    /// Real data: power on this many seconds into each recording.
+    pub power_on_at: Option<f64>,
 }
 
 impl Default for RefOptions {
     fn default() -> Self {
-        RefOptions { skip: 10.0, offset: 0.0, align_s: 5.0, force_align: false, peers: false }
+        RefOptions { skip: 10.0, offset: 0.0, align_s: 5.0, force_align: false, peers: false, power_on_at: None }
     }
 }
 
@@ -429,6 +437,9 @@ pub fn dispatch(
     skip: f64,
     a: &ReferenceArgs,
 ) -> Result<Option<(String, Option<String>)>, String> {
+    if a.power_on_at.is_some() && a.realdata.is_none() {
+        return Err("--power-on-at applies to --realdata only".into());
+    }
     if !a.active() {
         return Ok(None);
     }
@@ -446,7 +457,12 @@ pub fn dispatch(
         Some(p) => Config::load(p).map_err(|e| e.to_string())?,
         None => Config::default(),
     };
-    let o = RefOptions { skip, offset: a.offset, align_s, force_align: a.align_s.is_some(), peers: a.peers };
+    if let Some(p) = a.power_on_at {
+        if !(p.is_finite() && p >= 0.0) {
+            return Err(format!("--power-on-at must be >= 0 s, got {p}"));
+        }
+    }
+    let o = RefOptions { skip, offset: a.offset, align_s, force_align: a.align_s.is_some(), peers: a.peers, power_on_at: a.power_on_at };
     if let Some(dir) = &a.realdata {
         let label = config.map(|p| p.display().to_string()).unwrap_or_else(|| "built-in defaults".into());
         let t = realdata::run(dir, &cfg, &label, out, &o)?;

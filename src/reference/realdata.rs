@@ -52,13 +52,19 @@ pub fn evaluate_recording(dir: &Path, base: &Config, o: &RefOptions) -> Result<R
     let name = recording_name(dir);
     let can = dir.join("can.log.gz");
     let can = can.is_file().then_some(can);
-    let (log, import) = import_to_memory(&dir.join("imu.csv.gz"), can.as_deref(), &ImportOptions::default())?;
+    let io = ImportOptions { from: o.power_on_at, ..ImportOptions::default() };
+    let (log, import) = import_to_memory(&dir.join("imu.csv.gz"), can.as_deref(), &io)?;
     let config = overlay(base, &import.snippet, &format!("{name} import snippet"))?;
     let d = decode(&log[..], &config, &format!("{name} (imported log)"))?;
     if d.samples.len() != import.samples {
         return Err(format!("{name}: {} samples imported, {} decoded", import.samples, d.samples.len()));
     }
-    let r = read_reference(&dir.join("reference.csv.gz"))?;
+    let mut r = read_reference(&dir.join("reference.csv.gz"))?;
+    if let Some(p) = o.power_on_at {
+        // what the reference says before power-on is nothing to score (nor
+        // a rest phase to take the mount from)
+        r.rows.retain(|x| x.t >= p + o.offset);
+    }
     // the log's sample clock starts at 0 at the CSV's first `t`; the
     // reference is on the CSV's clock (`--offset` shifts it further)
     let o = RefOptions { peers: true, offset: o.offset + import.t0, ..o.clone() };
@@ -122,6 +128,13 @@ pub fn run(dir: &Path, base: &Config, config_label: &str, out: Option<&Path>, o:
         o.skip,
         super::score::VERTICAL_LIMIT_DEG
     );
+    if let Some(p) = o.power_on_at {
+        s += &format!(
+            "powered on {p} s into each recording (--power-on-at: the samples, the car's frames and the reference before are \
+             left out; scored from {} s after that)\n",
+            o.skip
+        );
+    }
     s += &table_header("recording");
     for r in &recs {
         s += &r.eval.table_rows(&r.name);
