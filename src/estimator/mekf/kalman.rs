@@ -212,10 +212,12 @@ impl Mekf {
         }
         let dq = quat::from_rotvec(&[d[TH], d[TH + 1], d[TH + 2]]);
         self.q = quat::mul(&dq, &self.q);
+        let r = quat::to_matrix(&dq);
         if let Some(lp) = self.f_lp.as_mut() {
             // the low-passed force was rotated with the old attitude
-            lp.rotate(&quat::to_matrix(&dq));
+            lp.rotate(&r);
         }
+        self.c_lag = quat::mat_mul(&r, &self.c_lag);
         quat::normalise(&mut self.q);
         self.c = quat::to_matrix(&self.q);
         for i in 0..3 {

@@ -75,14 +75,35 @@ impl Mekf {
 
     /// The navigation-frame low-passed specific force as gravity (tilt
     /// only), held the more loosely the harder the unit is being moved.
+    ///
+    /// The low-pass lags by `accel_tau_s` (τ; the Butterworth's delay for
+    /// slow changes): it sees the tilt error as it was then. A bias error δb
+    /// turns the tilt at `dθ' = -C δb`, so the gravity measures
+    /// `dθ(t - τ) = dθ(t) + τ C̄ δb`, `C̄` the attitude low-passed over τ
+    /// (`c_lag`). While the filter learns a bias no standstill has read
+    /// (provisionally, in motion) that term is in the row: a turn-on bias of
+    /// several deg/s puts the lagging tilt a dozen degrees behind, and taken
+    /// for a tilt error alone it taught the bias a fraction of what it is.
+    /// Once a rest has read the bias, what is left of it is hundredths of a
+    /// deg/s (a lag of a tenth of a degree, under the motion's share); the
+    /// term then only tied the hand's motion to the bias (broad-05, -18 and
+    /// -33 roll RMS up by 0.01-0.04 deg) and is left out.
     pub(super) fn gravity_lp_update(&mut self, gain: Gain, gate: f64) -> [Upd; 2] {
         let (Some(g), Some(nu)) = (self.f_lp, self.gravity_lp_innovation()) else { return [Upd::Skipped; 2] };
         let var = g.tilt_var(self.p.lp_tilt_var, self.p.tilt_motion_share2);
+        let tau = if gain.bias && !self.bias_known { self.p.accel_tau } else { 0.0 };
+        let cl = self.c_lag;
         let mut h = [0.0; N];
         h[TH + 1] = 1.0;
+        for j in 0..3 {
+            h[BI + j] = tau * cl[1][j];
+        }
         let a = self.update(&h, nu[0], var, gain, gate);
         let mut h = [0.0; N];
         h[TH] = -1.0;
+        for j in 0..3 {
+            h[BI + j] = -tau * cl[0][j];
+        }
         let b = self.update(&h, nu[1], var, gain, gate);
         if a == Upd::Gated || b == Upd::Gated {
             self.gravity_refused += self.p.tick_s;
@@ -101,12 +122,20 @@ impl Mekf {
     /// filter's tilt, is right (a unit powered on in motion took its first
     /// tilt from one sample of the hand's acceleration; VQF takes this
     /// gravity whole on every sample). The tilt turns to it, the turned
-    /// angle becomes its sigma; a bias no standstill has read was learned
-    /// with the wrong tilt and goes back to the prior; the field's dip was
-    /// measured with that tilt too.
+    /// angle becomes its sigma; a bias no standstill has read goes back to
+    /// the prior if it was learned with that wrong tilt, before the tilt had
+    /// settled; one learned since (provisionally, the gravity's lag in the
+    /// model) is kept and learning goes on: with a turn-on bias of several
+    /// deg/s the tilt is refused again and again while that bias is still
+    /// being learned, and throwing it back each time kept the hand's tilt
+    /// a dozen degrees off for as long as it was not put down. The field's
+    /// dip was measured with the wrong tilt too.
     pub(super) fn relevel_free(&mut self) {
-        self.gravity_held = 0.0;
-        self.tilt_settled = false;
+        let keep_bias = self.tilt_settled;
+        if !keep_bias {
+            self.gravity_held = 0.0;
+            self.tilt_settled = false;
+        }
         let Some(nu) = self.gravity_lp_innovation() else { return };
         // the whole turn, as an error state: (dθ_x, dθ_y) from the
         // innovations (dθ_y, -dθ_x); `inject` turns the attitude and the
@@ -130,7 +159,11 @@ impl Mekf {
         if open_heading {
             self.cov[TH + 2][TH + 2] = heading2;
         }
-        self.free_velocity_and_unread_bias();
+        if keep_bias {
+            self.free_velocity();
+        } else {
+            self.free_velocity_and_unread_bias();
+        }
         self.mag_ref = None;
         self.gravity_refused = 0.0;
         self.counters.relevels += 1;

@@ -198,6 +198,10 @@ pub struct Mekf {
     /// Low-passed specific force in the navigation frame, g, and the
     /// motion band's mean square (None until started).
     f_lp: Option<GravityLp>,
+    /// The attitude low-passed over `accel_tau_s` (per tick, turned with
+    /// every correction): what turns a bias error into the low-passed
+    /// gravity's lag (`gravity_lp_update`).
+    c_lag: Mat3,
     cov: [[f64; N]; N],
     dx: [f64; N],
     acc: Accum,
@@ -299,6 +303,7 @@ impl Mekf {
             v: [0.0; 3],
             scale: 0.0,
             f_lp: None,
+            c_lag: quat::to_matrix(&[1.0, 0.0, 0.0, 0.0]),
             cov: [[0.0; N]; N],
             dx: [0.0; N],
             acc: Accum::default(),
@@ -364,6 +369,7 @@ impl Mekf {
         self.body_f_lp = *accel;
         self.f_lp = None;
         self.initialise([roll, pitch, yaw], bias, bias_sigma);
+        self.c_lag = self.c;
         self.bias_known = known;
         self.bias_sigma_cache = self.bias_sigma();
         // with the car's own speed it is a vehicle

@@ -16,6 +16,12 @@ impl Mekf {
             return;
         }
         self.propagate(&a);
+        let k = (t / self.p.accel_tau).min(1.0);
+        for i in 0..3 {
+            for j in 0..3 {
+                self.c_lag[i][j] += (a.s_c[i][j] / t - self.c_lag[i][j]) * k;
+            }
+        }
         let n = a.n as f64;
         let mut fl = 0u16;
         let mut o = Outcome::default();
@@ -74,7 +80,9 @@ impl Mekf {
         // break for `PROVISIONAL_SETTLE_S`); from then on a steady residual
         // is the bias's, learned provisionally from a sigma brought down to
         // `PROVISIONAL_BIAS_SIGMA` (the cut broad-27's 0.46 deg/s x bias had
-        // held its roll 1.3 deg off for the 100 s to its first rest).
+        // held its roll 1.3 deg off for the 100 s to its first rest), the
+        // gravity's lag in the model (`gravity_lp_update`) and kept through
+        // re-levellings (`relevel_free`).
         if !self.bias_known && !self.vehicle && !self.tilt_settled && self.gravity_held >= PROVISIONAL_SETTLE_S {
             self.tilt_settled = true;
             // the field's dip, taken with the tilt before it settled, made
