@@ -69,6 +69,8 @@ pub struct GravityLp {
     /// Mean square of the horizontal `band - lp`, low-passed over
     /// `accel_tau_s`, g^2.
     pub motion_var: f64,
+    /// Samples taken since `new` while warming up (`push`).
+    n: u32,
 }
 
 impl GravityLp {
@@ -77,12 +79,45 @@ impl GravityLp {
         let [_, b1, b2, a1, a2] = g.bw;
         let s1 = f.map(|v| (b2 - a2) * v);
         let s0 = [0, 1, 2].map(|i| (b1 - a1) * f[i] + s1[i]);
-        GravityLp { gravity: *f, bw: [s0, s1], lp: *f, band: *f, motion_var: 0.0 }
+        GravityLp { gravity: *f, bw: [s0, s1], lp: *f, band: *f, motion_var: 0.0, n: 1 }
+    }
+
+    /// The Butterworth's states settled on `gravity` (as `new` does).
+    fn settle(&mut self, g: &LpGains) {
+        let [_, b1, b2, a1, a2] = g.bw;
+        for i in 0..3 {
+            self.bw[1][i] = (b2 - a2) * self.gravity[i];
+            self.bw[0][i] = (b1 - a1) * self.gravity[i] + self.bw[1][i];
+        }
     }
 
     /// One sample `f` with this step's gains.
+    ///
+    /// Until `accel_tau_s` worth of samples has been taken the low-passes
+    /// are the mean of the samples so far (weight `1 / n`, as VQF's
+    /// low-pass starts), the Butterworth held settled on it: started from
+    /// its first sample alone, a unit powered on in a hand's motion held
+    /// that one sample (10 g of it on broad-18) for seconds, and a
+    /// re-levelling to it in the first seconds turned the tilt to it.
     #[inline]
     pub fn push(&mut self, f: &[f64; 3], g: &LpGains) {
+        if self.n > 0 {
+            self.n += 1;
+            let k = 1.0 / self.n as f64;
+            if k > g.alpha {
+                let kb = k.max(g.alpha_band);
+                for i in 0..3 {
+                    self.gravity[i] += (f[i] - self.gravity[i]) * k;
+                    self.lp[i] += (f[i] - self.lp[i]) * k;
+                    self.band[i] += (f[i] - self.band[i]) * kb;
+                }
+                let (dn, de) = (self.band[0] - self.lp[0], self.band[1] - self.lp[1]);
+                self.motion_var += (dn * dn + de * de - self.motion_var) * k;
+                self.settle(g);
+                return;
+            }
+            self.n = 0;
+        }
         let [b0, b1, b2, a1, a2] = g.bw;
         for i in 0..3 {
             let x = f[i];
@@ -185,6 +220,35 @@ mod tests {
         let buzz = run(|t| [0.3 * (2.0 * std::f64::consts::PI * 50.0 * t).sin(), 0.0, -1.0], 30.0);
         let hand = run(|t| [0.3 * (std::f64::consts::PI * t).sin(), 0.0, -1.0], 30.0);
         assert!(buzz.motion_var < 0.01 * hand.motion_var, "{} against {}", buzz.motion_var, hand.motion_var);
+    }
+
+    #[test]
+    fn a_first_sample_in_a_hands_motion_is_one_sample_of_the_mean() {
+        // powered on in the middle of a 10 g jerk, then gravity alone: the
+        // low-passed gravity is the mean of what came so far (VQF's start),
+        // not the first sample held by a low-pass settled on it
+        let gains = LpGains::new(1.0 / 286.0, 3.0);
+        let mut g = GravityLp::new(&[10.0, 0.0, -1.0], &gains);
+        let tilt = |g: &GravityLp| (g.gravity[0].hypot(g.gravity[1])).atan2(-g.gravity[2]).to_degrees();
+        let mut at = Vec::new();
+        for k in 1..=(286 * 4) {
+            g.push(&[0.0, 0.0, -1.0], &gains);
+            if k % 286 == 0 {
+                at.push(tilt(&g));
+            }
+        }
+        // the mean of one 10 g sample and k - 1 of gravity: atan(10 / k)
+        assert!((at[0] - (10.0f64 / 286.0).atan().to_degrees()).abs() < 0.01, "after 1 s: {:?}", at);
+        assert!((at[1] - (10.0f64 / 572.0).atan().to_degrees()).abs() < 0.01, "after 2 s: {:?}", at);
+        // past `accel_tau_s` the Butterworth goes on from there
+        assert!(at[3] < at[2] && at[2] < 1.0, "{at:?}");
+        // settled on the first sample instead, it held 84 deg a second on
+        let mut held = GravityLp::new(&[10.0, 0.0, -1.0], &gains);
+        held.n = 0;
+        for _ in 0..286 {
+            held.push(&[0.0, 0.0, -1.0], &gains);
+        }
+        assert!(tilt(&held) > 60.0, "{}", tilt(&held));
     }
 
     #[test]
