@@ -78,11 +78,11 @@ const HEADING_REACQUIRE_S: f64 = 5.0;
 const FREE_HEADING_SIGMA: f64 = 5.0 * D2R;
 /// A unit that is not a vehicle, powered on in motion (no standstill has
 /// read its bias): once its low-passed gravity has been taken without a
-/// break for this long, its tilt has settled on it and a steady residual is
-/// the bias's, learned in motion from then on (provisionally, until a
-/// standstill reads it)...
-const PROVISIONAL_SETTLE_S: f64 = 10.0;
-/// ...with the bias's 1-sigma first brought down to this (rad/s; VQF's
+/// break for `accel_tau_s` (the low-pass's own time; it starts as the mean
+/// of the samples so far), its tilt has settled on it and a steady residual
+/// is the bias's, learned in motion from then on (provisionally, until a
+/// standstill reads it, the gravity's lag in the model) with the bias's
+/// 1-sigma first brought down to this (rad/s; VQF's
 /// motion bias sigma, 0.1 deg/s): the prior's, 3 deg/s, let the lag of
 /// the low-passed gravity in a hand's motion run the bias away.
 const PROVISIONAL_BIAS_SIGMA: f64 = 0.1 * D2R;

@@ -77,13 +77,13 @@ impl Mekf {
         // range (3 deg/s) from it ran away on every BROAD recording started
         // 15 s into its motion (10-44 deg of roll). So it corrects the tilt
         // only until the tilt has settled on that gravity (taken without a
-        // break for `PROVISIONAL_SETTLE_S`); from then on a steady residual
+        // break for `accel_tau_s`); from then on a steady residual
         // is the bias's, learned provisionally from a sigma brought down to
         // `PROVISIONAL_BIAS_SIGMA` (the cut broad-27's 0.46 deg/s x bias had
         // held its roll 1.3 deg off for the 100 s to its first rest), the
         // gravity's lag in the model (`gravity_lp_update`) and kept through
         // re-levellings (`relevel_free`).
-        if !self.bias_known && !self.vehicle && !self.tilt_settled && self.gravity_held >= PROVISIONAL_SETTLE_S {
+        if !self.bias_known && !self.vehicle && !self.tilt_settled && self.gravity_held >= self.p.accel_tau {
             self.tilt_settled = true;
             // the field's dip, taken with the tilt before it settled, made
             // every later field look disturbed (broad-18 cut 5 s into its
