@@ -227,16 +227,31 @@ fn car_bus() -> String {
     car
 }
 
+/// `recording(200)` as a CSV beside `car_bus()` as a log, and where the
+/// import writes (the log, the snippet).
+struct Files {
+    r: Rec,
+    csv: PathBuf,
+    car: String,
+    car_p: PathBuf,
+    log: PathBuf,
+    snip: PathBuf,
+}
+
+fn recording_and_car_bus(dir: &Path) -> Files {
+    let r = recording(200);
+    let csv = dir.join("a.csv");
+    std::fs::write(&csv, csv_text(&r, HEADER, full_row)).unwrap();
+    let car = car_bus();
+    let car_p = dir.join("car.log");
+    std::fs::write(&car_p, &car).unwrap();
+    Files { r, csv, car, car_p, log: dir.join("o.log"), snip: dir.join("o.toml") }
+}
+
 #[test]
 fn another_bus_is_merged_by_timestamp() {
     let d = tempfile::tempdir().unwrap();
-    let r = recording(200);
-    let csv = d.path().join("a.csv");
-    std::fs::write(&csv, csv_text(&r, HEADER, full_row)).unwrap();
-    let car = car_bus();
-    let car_p = d.path().join("car.log");
-    std::fs::write(&car_p, &car).unwrap();
-    let (log, snip) = (d.path().join("o.log"), d.path().join("o.toml"));
+    let Files { r, csv, car, car_p, log, snip } = recording_and_car_bus(d.path());
     let err = ok(&import(&["--csv", p(&csv), "--out", p(&log), "--config-out", p(&snip), "--can", p(&car_p)]));
     let text = std::fs::read_to_string(&log).unwrap();
     let lines: Vec<&str> = text.lines().collect();
@@ -270,13 +285,7 @@ fn another_bus_is_merged_by_timestamp() {
 #[test]
 fn from_powers_the_unit_on_later_with_the_car_bus_from_then_on() {
     let d = tempfile::tempdir().unwrap();
-    let r = recording(200);
-    let csv = d.path().join("a.csv");
-    std::fs::write(&csv, csv_text(&r, HEADER, full_row)).unwrap();
-    let car = car_bus();
-    let car_p = d.path().join("car.log");
-    std::fs::write(&car_p, &car).unwrap();
-    let (log, snip) = (d.path().join("o.log"), d.path().join("o.toml"));
+    let Files { r, csv, car, car_p, log, snip } = recording_and_car_bus(d.path());
     let err = ok(&import(&["--csv", p(&csv), "--out", p(&log), "--config-out", p(&snip), "--can", p(&car_p), "--from", "4.0"]));
     let k0 = r.t.iter().position(|t| *t >= 4.0).unwrap();
     assert_eq!(k0, 75);

@@ -43,6 +43,39 @@ fn broad_recordings(names: &[&'static str]) -> Vec<(&'static str, PathBuf)> {
     found
 }
 
+/// The recording `name` under the folder of recordings; None (said) when
+/// it or the folder is not there.
+fn one_recording(name: &str) -> Option<PathBuf> {
+    let Some(dir) = realdata_dir() else {
+        println!("skipped: ../shared/realdata not found (set GYROCOMP_REALDATA to the folder of recordings)");
+        return None;
+    };
+    let rec = dir.join(name);
+    if !rec.is_dir() {
+        println!("skipped: {} not found", rec.display());
+        return None;
+    }
+    Some(rec)
+}
+
+/// Ours and VQF on the recording `rec` powered on `at` s into it
+/// (`--power-on-at`), the built-in defaults.
+fn powered_on_at(rec: &std::path::Path, at: f64) -> (gyrocomp::reference::score::Scores, gyrocomp::reference::score::Scores) {
+    use gyrocomp::reference::RefOptions;
+    let o = RefOptions { power_on_at: Some(at), ..RefOptions::default() };
+    let mut r = gyrocomp::reference::realdata::evaluate_recording(rec, &gyrocomp::config::Config::default(), &o).unwrap();
+    let vqf = r.eval.results.pop().unwrap().scores;
+    (r.eval.results.pop().unwrap().scores, vqf)
+}
+
+/// "roll max/RMS ours a/b VQF c/d, pitch ours e/f VQF g/h deg".
+fn ours_and_vqf(ours: &gyrocomp::reference::score::Scores, vqf: &gyrocomp::reference::score::Scores) -> String {
+    format!(
+        "roll max/RMS ours {:.2}/{:.3} VQF {:.2}/{:.3}, pitch ours {:.2}/{:.3} VQF {:.2}/{:.3} deg",
+        ours.roll.max, ours.roll.rms, vqf.roll.max, vqf.roll.rms, ours.pitch.max, ours.pitch.rms, vqf.pitch.max, vqf.pitch.rms
+    )
+}
+
 /// `text`, a CSV with a header, gzip-compressed to `p`, each row's fields
 /// changed by `edit` first.
 fn write_csv_gz(p: &std::path::Path, text: &str, mut edit: impl FnMut(&mut [String])) {
@@ -145,11 +178,7 @@ fn realdata_table_ours_and_vqf() {
 /// estimated (`--align-s 0`: the reference is the phone's own frame).
 #[test]
 fn the_car_with_and_without_its_wheel_speeds() {
-    let Some(dir) = realdata_dir() else {
-        println!("skipped: ../shared/realdata not found (set GYROCOMP_REALDATA to the folder of recordings)");
-        return;
-    };
-    let car = dir.join("comma2k19-rav4-60s");
+    let Some(car) = one_recording("comma2k19-rav4-60s") else { return };
     if !car.join("toyota.dbc").is_file() {
         println!("skipped: {} has no toyota.dbc", car.display());
         return;
@@ -221,15 +250,7 @@ fn the_hand_held_gyro_alone_drifts_between_rests() {
     use gyrocomp::reference::score::sample_times;
     use gyrocomp::reference::RefOptions;
     use nalgebra::{UnitQuaternion, Vector3};
-    let Some(dir) = realdata_dir() else {
-        println!("skipped: ../shared/realdata not found (set GYROCOMP_REALDATA to the folder of recordings)");
-        return;
-    };
-    let rec = dir.join("broad-14-slow-translation");
-    if !rec.is_dir() {
-        println!("skipped: {} not found", rec.display());
-        return;
-    }
+    let Some(rec) = one_recording("broad-14-slow-translation") else { return };
     let r = evaluate_recording(&rec, &Config::default(), &RefOptions::default()).unwrap();
     let d = gyrocomp::reference::decode(&r.log[..], &r.config, "broad-14").unwrap();
     let period = r.eval.period;
@@ -361,9 +382,6 @@ fn a_turn_on_bias_of_several_deg_per_s_changes_nothing_after_the_first_rest() {
 /// scored. Prints ours and VQF.
 #[test]
 fn powered_on_in_a_moving_hand_no_recording_diverges() {
-    use gyrocomp::config::Config;
-    use gyrocomp::reference::realdata::evaluate_recording;
-    use gyrocomp::reference::RefOptions;
     for (name, rec) in broad_recordings(&BROAD) {
         let reference = read_gz(&rec.join("reference.csv.gz"));
         let header: Vec<&str> = reference.lines().next().unwrap().split(',').collect();
@@ -382,19 +400,10 @@ fn powered_on_in_a_moving_hand_no_recording_diverges() {
         }
         for after in [15.0, 5.0] {
             let t0 = rest_end.expect("a rest phase that ends") + after;
-            let o = RefOptions { power_on_at: Some(t0), ..RefOptions::default() };
-            let r = evaluate_recording(&rec, &Config::default(), &o).unwrap();
-            let (ours, vqf) = (&r.eval.results[0].scores, &r.eval.results[1].scores);
+            let (ours, vqf) = powered_on_at(&rec, t0);
             println!(
-                "{name} from {t0:.1} s: roll max/RMS ours {:.2}/{:.3} VQF {:.2}/{:.3}, pitch ours {:.2}/{:.3} VQF {:.2}/{:.3} deg, yaw RMS ours {} VQF {} ({:.0} s scored)",
-                ours.roll.max,
-                ours.roll.rms,
-                vqf.roll.max,
-                vqf.roll.rms,
-                ours.pitch.max,
-                ours.pitch.rms,
-                vqf.pitch.max,
-                vqf.pitch.rms,
+                "{name} from {t0:.1} s: {}, yaw RMS ours {} VQF {} ({:.0} s scored)",
+                ours_and_vqf(&ours, &vqf),
                 ours.yaw_rms.map_or("not scored".into(), |y| format!("{y:.2}")),
                 vqf.yaw_rms.map_or("not scored".into(), |y| format!("{y:.2}")),
                 ours.scored_s
@@ -434,18 +443,10 @@ fn powered_on_in_a_moving_hand_no_recording_diverges() {
 /// and VQF.
 #[test]
 fn powered_on_in_a_fast_translation_the_first_jerk_is_not_held() {
-    use gyrocomp::config::Config;
-    use gyrocomp::reference::realdata::evaluate_recording;
-    use gyrocomp::reference::RefOptions;
     for (name, rec) in broad_recordings(&["broad-18-fast-translation"]) {
         for at in [37.0, 40.0, 80.0] {
-            let o = RefOptions { power_on_at: Some(at), ..RefOptions::default() };
-            let r = evaluate_recording(&rec, &Config::default(), &o).unwrap();
-            let (ours, vqf) = (&r.eval.results[0].scores, &r.eval.results[1].scores);
-            println!(
-                "{name} powered on at {at} s: roll max/RMS ours {:.2}/{:.3} VQF {:.2}/{:.3}, pitch ours {:.2}/{:.3} VQF {:.2}/{:.3} deg",
-                ours.roll.max, ours.roll.rms, vqf.roll.max, vqf.roll.rms, ours.pitch.max, ours.pitch.rms, vqf.pitch.max, vqf.pitch.rms
-            );
+            let (ours, vqf) = powered_on_at(&rec, at);
+            println!("{name} powered on at {at} s: {}", ours_and_vqf(&ours, &vqf));
             assert!(ours.roll.max < 3.0 && ours.pitch.max < 3.0, "at {at} s: roll max {} pitch max {}", ours.roll.max, ours.pitch.max);
         }
     }
@@ -462,9 +463,6 @@ fn powered_on_in_a_fast_translation_the_first_jerk_is_not_held() {
 /// every start.
 #[test]
 fn powered_on_anywhere_in_a_hands_motion() {
-    use gyrocomp::config::Config;
-    use gyrocomp::reference::realdata::evaluate_recording;
-    use gyrocomp::reference::RefOptions;
     let recs = broad_recordings(&BROAD);
     if recs.len() < BROAD.len() {
         println!("skipped: not every BROAD recording is there");
@@ -473,13 +471,8 @@ fn powered_on_anywhere_in_a_hands_motion() {
     let (mut ours_sum, mut vqf_sum, mut n) = ([0.0; 2], [0.0; 2], 0.0);
     for at in [40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0, 120.0] {
         for (name, rec) in &recs {
-            let o = RefOptions { power_on_at: Some(at), ..RefOptions::default() };
-            let r = evaluate_recording(rec, &Config::default(), &o).unwrap();
-            let (ours, vqf) = (&r.eval.results[0].scores, &r.eval.results[1].scores);
-            println!(
-                "{name} at {at} s: roll max/RMS ours {:.2}/{:.3} VQF {:.2}/{:.3}, pitch ours {:.2}/{:.3} VQF {:.2}/{:.3} deg",
-                ours.roll.max, ours.roll.rms, vqf.roll.max, vqf.roll.rms, ours.pitch.max, ours.pitch.rms, vqf.pitch.max, vqf.pitch.rms
-            );
+            let (ours, vqf) = powered_on_at(rec, at);
+            println!("{name} at {at} s: {}", ours_and_vqf(&ours, &vqf));
             assert!(ours.roll.max < 10.0 && ours.pitch.max < 10.0, "{name} at {at} s: diverged");
             ours_sum[0] += ours.roll.rms;
             ours_sum[1] += ours.pitch.rms;
@@ -500,34 +493,10 @@ fn powered_on_anywhere_in_a_hands_motion() {
 /// 10 s after power-on, the bar). Prints ours and VQF.
 #[test]
 fn the_car_restarted_while_driving_does_not_diverge() {
-    use gyrocomp::config::Config;
-    use gyrocomp::reference::realdata::evaluate_recording;
-    use gyrocomp::reference::RefOptions;
-    let Some(dir) = realdata_dir() else {
-        println!("skipped: ../shared/realdata not found (set GYROCOMP_REALDATA to the folder of recordings)");
-        return;
-    };
-    let rec = dir.join("comma2k19-rav4-60s");
-    if !rec.is_dir() {
-        println!("skipped: {} not found", rec.display());
-        return;
-    }
+    let Some(rec) = one_recording("comma2k19-rav4-60s") else { return };
     for at in [10.0, 20.0, 30.0, 40.0] {
-        let o = RefOptions { power_on_at: Some(at), ..RefOptions::default() };
-        let r = evaluate_recording(&rec, &Config::default(), &o).unwrap();
-        let (ours, vqf) = (&r.eval.results[0].scores, &r.eval.results[1].scores);
-        println!(
-            "powered on at {at} s: roll max/RMS ours {:.2}/{:.3} VQF {:.2}/{:.3}, pitch ours {:.2}/{:.3} VQF {:.2}/{:.3} deg ({:.0} s scored)",
-            ours.roll.max,
-            ours.roll.rms,
-            vqf.roll.max,
-            vqf.roll.rms,
-            ours.pitch.max,
-            ours.pitch.rms,
-            vqf.pitch.max,
-            vqf.pitch.rms,
-            ours.scored_s
-        );
+        let (ours, vqf) = powered_on_at(&rec, at);
+        println!("powered on at {at} s: {} ({:.0} s scored)", ours_and_vqf(&ours, &vqf), ours.scored_s);
         assert!(ours.scored_s > 9.0, "{} s scored", ours.scored_s);
         assert!(
             ours.roll.max < 10.0 && ours.pitch.max < 10.0,
