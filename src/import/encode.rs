@@ -175,6 +175,13 @@ pub struct Merge<'a> {
     pub drop_before: bool,
 }
 
+impl Merge<'static> {
+    /// The candump log at `p` (gzip allowed), every line kept.
+    pub fn open(p: &std::path::Path) -> Result<Merge<'static>, String> {
+        Ok(Merge { name: p.display().to_string(), reader: super::csv::open_text(p)?, drop_before: false })
+    }
+}
+
 /// One pending line of the merged log.
 struct Pending {
     t_us: u64,

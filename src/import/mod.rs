@@ -285,10 +285,7 @@ pub fn import_to<W: Write>(csv: &Path, o: &ImportOptions, merge: Option<Merge<'_
 
 /// Import into memory: the log's bytes and what the import did.
 pub fn import_to_memory(csv: &Path, can: Option<&Path>, o: &ImportOptions) -> Result<(Vec<u8>, Imported), String> {
-    let merge = match can {
-        Some(p) => Some(Merge { name: p.display().to_string(), reader: open_text(p)?, drop_before: false }),
-        None => None,
-    };
+    let merge = can.map(Merge::open).transpose()?;
     let mut buf = Vec::new();
     let imp = import_to(csv, o, merge, &mut buf)?;
     Ok((buf, imp))
@@ -313,10 +310,7 @@ pub fn run(a: &ImportArgs) -> Result<(), String> {
         outputs.push(c);
     }
     refuse_inputs_as_outputs(&inputs, &outputs)?;
-    let merge = match &a.can {
-        Some(p) => Some(Merge { name: p.display().to_string(), reader: open_text(p)?, drop_before: false }),
-        None => None,
-    };
+    let merge = a.can.as_deref().map(Merge::open).transpose()?;
     let oerr = |p: &Path| {
         let p = p.display().to_string();
         move |e: std::io::Error| format!("cannot write {p}: {e}")

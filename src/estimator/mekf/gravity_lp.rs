@@ -76,13 +76,12 @@ pub struct GravityLp {
 impl GravityLp {
     /// Settled on a constant `f`.
     pub fn new(f: &[f64; 3], g: &LpGains) -> GravityLp {
-        let [_, b1, b2, a1, a2] = g.bw;
-        let s1 = f.map(|v| (b2 - a2) * v);
-        let s0 = [0, 1, 2].map(|i| (b1 - a1) * f[i] + s1[i]);
-        GravityLp { gravity: *f, bw: [s0, s1], lp: *f, band: *f, motion_var: 0.0, n: 1 }
+        let mut lp = GravityLp { gravity: *f, bw: [[0.0; 3]; 2], lp: *f, band: *f, motion_var: 0.0, n: 1 };
+        lp.settle(g);
+        lp
     }
 
-    /// The Butterworth's states settled on `gravity` (as `new` does).
+    /// The Butterworth's states settled on `gravity`.
     fn settle(&mut self, g: &LpGains) {
         let [_, b1, b2, a1, a2] = g.bw;
         for i in 0..3 {

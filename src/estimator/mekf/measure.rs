@@ -133,8 +133,8 @@ impl Mekf {
     pub(super) fn relevel_free(&mut self) {
         let keep_bias = self.tilt_settled;
         if !keep_bias {
+            // the settling starts over
             self.gravity_held = 0.0;
-            self.tilt_settled = false;
         }
         let Some(nu) = self.gravity_lp_innovation() else { return };
         // the whole turn, as an error state: (dθ_x, dθ_y) from the
