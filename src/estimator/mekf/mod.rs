@@ -111,6 +111,14 @@ const GAP_SPEED_VAR: f64 = 4.0;
 const GAP_ACCEL: f64 = 3.0;
 /// 1-sigma of the vertical-speed bound (`max_vertical_speed`), m/s.
 const VERTICAL_BOUND_SIGMA: f64 = 0.5;
+/// A car's body cannot keep rolling or pitching (`level_rate_update`): its
+/// rate about the horizontal, averaged over `LEVEL_WINDOW_S`, is zero within
+/// `LEVEL_RATE_SIGMA` (a grade or a suspension's change over the window:
+/// 3 deg in 3 s is a hard braking's dive), on windows turning less than
+/// `LEVEL_TURN_MAX` about the vertical.
+const LEVEL_WINDOW_S: f64 = 3.0;
+const LEVEL_RATE_SIGMA: f64 = 1.0 * D2R;
+const LEVEL_TURN_MAX: f64 = 3.0 * D2R;
 
 /// What a scalar update did.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -140,6 +148,8 @@ struct Accum {
     t: f64,
     /// Σ C dt and Σ C f dt (f in m/s^2).
     s_c: Mat3,
+    /// Σ C ω dt, ω the raw gyro (rad/s): the navigation frame's raw turn.
+    s_cg: [f64; 3],
     dv: [f64; 3],
     /// Σ raw gyro (rad/s), Σ bias-corrected gyro, Σ magnetometer.
     gyro: [f64; 3],
@@ -202,6 +212,8 @@ pub struct Mekf {
     /// every correction): what turns a bias error into the low-passed
     /// gravity's lag (`gravity_lp_update`).
     c_lag: Mat3,
+    /// The window of `level_rate_update`: seconds, Σ C dt, Σ C ω_raw dt.
+    level: (f64, Mat3, [f64; 3]),
     cov: [[f64; N]; N],
     dx: [f64; N],
     acc: Accum,
@@ -304,6 +316,7 @@ impl Mekf {
             scale: 0.0,
             f_lp: None,
             c_lag: quat::to_matrix(&[1.0, 0.0, 0.0, 0.0]),
+            level: (0.0, [[0.0; 3]; 3], [0.0; 3]),
             cov: [[0.0; N]; N],
             dx: [0.0; N],
             acc: Accum::default(),
@@ -546,6 +559,7 @@ impl Mekf {
             for i in 0..3 {
                 for j in 0..3 {
                     a.s_c[i][j] += self.c[i][j] * dt;
+                    a.s_cg[i] += self.c[i][j] * gyro[j] * dt;
                 }
                 a.dv[i] += f[i] * gl * dt;
             }

@@ -122,6 +122,15 @@ impl Mekf {
             if !a.suspect {
                 let learn_v = if self.vehicle { learn } else { learn_gravity };
                 let (f, g) = self.velocity_updates(&omega, learn_v, self.p.gate);
+                // a car powered on while driving: its body's rate about the
+                // horizontal, averaged, is its bias's (`level_rate_update`)
+                if self.vehicle && !self.bias_known {
+                    self.inject();
+                    let gain = Gain { tilt: true, heading: true, bias: true, velocity: false };
+                    self.level_rate_update(t, &a.s_c, &a.s_cg, gain);
+                } else {
+                    self.level_rate_reset();
+                }
                 if !self.vehicle && self.gravity_refused >= self.p.relevel_s {
                     self.inject();
                     self.relevel_free();
