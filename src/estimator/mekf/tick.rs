@@ -124,7 +124,7 @@ impl Mekf {
                 let (f, g) = self.velocity_updates(&omega, learn_v, self.p.gate);
                 // a car powered on while driving: its body's rate about the
                 // horizontal, averaged, is its bias's (`level_rate_update`)
-                if self.vehicle && !self.bias_known {
+                if self.vehicle && !self.bias_known && !self.p.speed_aided {
                     self.inject();
                     let gain = Gain { tilt: true, heading: true, bias: true, velocity: false };
                     self.level_rate_update(t, &a.s_c, &a.s_cg, gain);
