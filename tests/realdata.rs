@@ -68,6 +68,12 @@ fn powered_on_at(rec: &std::path::Path, at: f64) -> (gyrocomp::reference::score:
     (r.eval.results.pop().unwrap().scores, vqf)
 }
 
+/// The bar for "no divergence": roll and pitch max under 10 deg
+/// (from 10 s after power-on); `what` names the run in the message.
+fn assert_not_diverged(ours: &gyrocomp::reference::score::Scores, what: &str) {
+    assert!(ours.roll.max < 10.0 && ours.pitch.max < 10.0, "{what}: diverged: roll max {} pitch max {}", ours.roll.max, ours.pitch.max);
+}
+
 /// "roll max/RMS ours a/b VQF c/d, pitch ours e/f VQF g/h deg".
 fn ours_and_vqf(ours: &gyrocomp::reference::score::Scores, vqf: &gyrocomp::reference::score::Scores) -> String {
     format!(
@@ -409,12 +415,7 @@ fn powered_on_in_a_moving_hand_no_recording_diverges() {
                 ours.scored_s
             );
             assert!(ours.scored_s > 60.0, "{name}: {} s scored: the reference was not found on the cut clock", ours.scored_s);
-            assert!(
-                ours.roll.max < 10.0 && ours.pitch.max < 10.0,
-                "{name}: diverged: roll max {} pitch max {}",
-                ours.roll.max,
-                ours.pitch.max
-            );
+            assert_not_diverged(&ours, name);
             if after == 5.0 {
                 // 5 s in, the heading: broad-18's dip, taken with a tilt still
                 // wrong, had kept its heading 75-180 deg off (yaw RMS 31.7)
@@ -473,7 +474,7 @@ fn powered_on_anywhere_in_a_hands_motion() {
         for (name, rec) in &recs {
             let (ours, vqf) = powered_on_at(rec, at);
             println!("{name} at {at} s: {}", ours_and_vqf(&ours, &vqf));
-            assert!(ours.roll.max < 10.0 && ours.pitch.max < 10.0, "{name} at {at} s: diverged");
+            assert_not_diverged(&ours, &format!("{name} at {at} s"));
             ours_sum[0] += ours.roll.rms;
             ours_sum[1] += ours.pitch.rms;
             vqf_sum[0] += vqf.roll.rms;
@@ -498,12 +499,7 @@ fn the_car_restarted_while_driving_does_not_diverge() {
         let (ours, vqf) = powered_on_at(&rec, at);
         println!("powered on at {at} s: {} ({:.0} s scored)", ours_and_vqf(&ours, &vqf), ours.scored_s);
         assert!(ours.scored_s > 9.0, "{} s scored", ours.scored_s);
-        assert!(
-            ours.roll.max < 10.0 && ours.pitch.max < 10.0,
-            "at {at} s: diverged: roll max {} pitch max {}",
-            ours.roll.max,
-            ours.pitch.max
-        );
+        assert_not_diverged(&ours, &format!("at {at} s"));
         // the body's rate about the horizontal, zero on average, tells the
         // roll axis's bias (at 20 s it had been 3.3 deg RMS: a z bias taken
         // for a turn, and roll put against it)

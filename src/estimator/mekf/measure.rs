@@ -86,18 +86,18 @@ impl Mekf {
     /// pitch bias ran the comma2k19 car's pitch 7 deg off in 2 s.
     /// Called once per tick with the tick's sums; updates once per window.
     pub(super) fn level_rate_update(&mut self, t: f64, s_c: &Mat3, s_cg: &[f64; 3], gain: Gain) {
-        let (w, c, g) = &mut self.level;
-        *w += t;
+        let lw = &mut self.level;
+        lw.t += t;
         for i in 0..3 {
-            g[i] += s_cg[i];
+            lw.s_cg[i] += s_cg[i];
             for j in 0..3 {
-                c[i][j] += s_c[i][j];
+                lw.s_c[i][j] += s_c[i][j];
             }
         }
-        if *w < LEVEL_WINDOW_S {
+        if lw.t < LEVEL_WINDOW_S {
             return;
         }
-        let (w, c, g) = std::mem::replace(&mut self.level, (0.0, [[0.0; 3]; 3], [0.0; 3]));
+        let LevelWindow { t: w, s_c: c, s_cg: g } = std::mem::take(&mut self.level);
         let b = self.bias;
         // the mean navigation-frame rate, bias-corrected
         let r: [f64; 3] = std::array::from_fn(|k| (g[k] - (0..3).map(|j| c[k][j] * b[j]).sum::<f64>()) / w);
@@ -113,9 +113,12 @@ impl Mekf {
         }
     }
 
-    /// Forget the window of `level_rate_update`.
-    pub(super) fn level_rate_reset(&mut self) {
-        self.level = (0.0, [[0.0; 3]; 3], [0.0; 3]);
+    /// `level_rate_update` runs (and the samples feed its window): a car,
+    /// IMU only, before a standstill has read its bias. Between ticks this
+    /// only turns false (the vehicle model left), never true.
+    #[inline]
+    pub(super) fn learns_level_rate(&self) -> bool {
+        self.vehicle && !self.bias_known && !self.p.speed_aided
     }
 
     /// The navigation-frame low-passed specific force as gravity (tilt

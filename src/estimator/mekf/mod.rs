@@ -148,7 +148,8 @@ struct Accum {
     t: f64,
     /// Σ C dt and Σ C f dt (f in m/s^2).
     s_c: Mat3,
-    /// Σ C ω dt, ω the raw gyro (rad/s): the navigation frame's raw turn.
+    /// Σ C ω dt, ω the raw gyro (rad/s): the navigation frame's raw turn
+    /// (only while `learns_level_rate`).
     s_cg: [f64; 3],
     dv: [f64; 3],
     /// Σ raw gyro (rad/s), Σ bias-corrected gyro, Σ magnetometer.
@@ -166,6 +167,14 @@ struct Accum {
     rest: bool,
     /// The rest detector's instantaneous conditions held (not yet `min_s`).
     quiet: bool,
+}
+
+/// The window of `Mekf::level_rate_update`: seconds, Σ C dt, Σ C ω_raw dt.
+#[derive(Clone, Debug, Default)]
+struct LevelWindow {
+    t: f64,
+    s_c: Mat3,
+    s_cg: [f64; 3],
 }
 
 /// What the updates of one tick did.
@@ -212,8 +221,7 @@ pub struct Mekf {
     /// every correction): what turns a bias error into the low-passed
     /// gravity's lag (`gravity_lp_update`).
     c_lag: Mat3,
-    /// The window of `level_rate_update`: seconds, Σ C dt, Σ C ω_raw dt.
-    level: (f64, Mat3, [f64; 3]),
+    level: LevelWindow,
     cov: [[f64; N]; N],
     dx: [f64; N],
     acc: Accum,
@@ -316,7 +324,7 @@ impl Mekf {
             scale: 0.0,
             f_lp: None,
             c_lag: quat::to_matrix(&[1.0, 0.0, 0.0, 0.0]),
-            level: (0.0, [[0.0; 3]; 3], [0.0; 3]),
+            level: LevelWindow::default(),
             cov: [[0.0; N]; N],
             dx: [0.0; N],
             acc: Accum::default(),
@@ -551,6 +559,7 @@ impl Mekf {
             // gravity; f scaled by the rests' |f|) were measured on the
             // simulator and the real recordings: none better beyond noise.
             let gl = s.g0 * G;
+            let g_nav = if self.learns_level_rate() { rotate(&self.c, &gyro) } else { [0.0; 3] };
             for i in 0..3 {
                 self.v[i] += f[i] * gl * dt;
             }
@@ -559,8 +568,8 @@ impl Mekf {
             for i in 0..3 {
                 for j in 0..3 {
                     a.s_c[i][j] += self.c[i][j] * dt;
-                    a.s_cg[i] += self.c[i][j] * gyro[j] * dt;
                 }
+                a.s_cg[i] += g_nav[i] * dt;
                 a.dv[i] += f[i] * gl * dt;
             }
             a.t += dt;

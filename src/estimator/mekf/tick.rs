@@ -124,12 +124,12 @@ impl Mekf {
                 let (f, g) = self.velocity_updates(&omega, learn_v, self.p.gate);
                 // a car powered on while driving: its body's rate about the
                 // horizontal, averaged, is its bias's (`level_rate_update`)
-                if self.vehicle && !self.bias_known && !self.p.speed_aided {
+                if self.learns_level_rate() {
                     self.inject();
                     let gain = Gain { tilt: true, heading: true, bias: true, velocity: false };
                     self.level_rate_update(t, &a.s_c, &a.s_cg, gain);
                 } else {
-                    self.level_rate_reset();
+                    self.level = LevelWindow::default();
                 }
                 if !self.vehicle && self.gravity_refused >= self.p.relevel_s {
                     self.inject();
