@@ -58,6 +58,10 @@ pub struct Report {
     pub magnetometer: Option<bool>,
     /// The vehicle model in use (None in the paper's modes).
     pub vehicle: Option<bool>,
+    /// The vehicle constraint's axes: their turn about the unit's z axis
+    /// (deg, 0 unless the pull-aways turned them) and the pull-aways seen
+    /// (None in the paper's modes).
+    pub vehicle_axes: Option<(f64, u32)>,
     /// The power-on speed hypotheses' outcome (None when they did not run).
     pub power_on: Option<crate::estimator::PowerOnSpeed>,
     /// Speed frames decoded and dropped (None without `[speed]`).
@@ -89,6 +93,12 @@ impl Report {
                 }
                 None => String::new(),
             };
+            if let (Some((yaw, pulls)), true) = (self.vehicle_axes, c.reaxed > 0) {
+                s += &format!(
+                    "vehicle axes: turned {yaw:.1} deg about the unit's z axis to the way the car pulled away ({pulls} pull-aways from standstills): the unit is mounted turned; [mounting] rotation yaw {:.1} deg would say so (gyrocomp align)\n",
+                    -yaw
+                );
+            }
             if let Some(p) = &self.power_on {
                 s += &match p.ended {
                     Some((t, why)) => format!(
@@ -226,6 +236,7 @@ impl Pipeline {
             mekf: self.estimator.mekf_counters(),
             magnetometer: self.estimator.magnetometer(),
             vehicle: self.estimator.mekf().map(|m| m.vehicle()),
+            vehicle_axes: self.estimator.mekf().map(|m| m.vehicle_axes()),
             power_on: self.estimator.power_on_speed(),
             speed: self.speed_counts(),
             rate: (span >= 5.0).then(|| (1.0 / self.period, self.steps as f64 / span)),

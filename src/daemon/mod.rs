@@ -468,6 +468,9 @@ fn status_line(last: &Option<Estimate>, silent: bool, pipe: &Pipeline, shell: &S
         if let Some(sp) = &r.speed {
             what += &format!(", speed used {:.0} s ({} frames, {} dropped)", k.speed_used_s, sp.decoded, sp.dropped());
         }
+        if let (Some((yaw, _)), true) = (r.vehicle_axes, k.reaxed > 0) {
+            what += &format!(", vehicle axes turned {yaw:.0} deg (the car pulls away along it: [mounting] rotation yaw {:.0})", -yaw);
+        }
         what += match r.magnetometer {
             Some(true) => ", magnetometer on",
             Some(false) => ", magnetometer off",

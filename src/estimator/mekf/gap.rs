@@ -32,7 +32,7 @@ impl Mekf {
             // V = -[v×]: the velocity's error for an attitude error
             let v = self.v;
             let vx = [[0.0, v[2], -v[1]], [-v[2], 0.0, v[0]], [v[1], -v[0], 0.0]];
-            let cx = [self.c[0][0], self.c[1][0], self.c[2][0]];
+            let cx = rotate(&self.c, &self.axes.rows[0]);
             for i in 0..3 {
                 for j in 0..3 {
                     // ΔP_vθ = V ΔP_θθ, ΔP_vv = V ΔP_θθ V^T + the speed along body x

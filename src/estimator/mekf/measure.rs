@@ -227,20 +227,27 @@ impl Mekf {
 
     /// Body-axis `i` velocity at the rear axle and its row of H.
     pub(super) fn body_velocity_row(&self, i: usize, omega: &[f64; 3]) -> (f64, [f64; N]) {
+        // a car's constraint holds along its own axes (`forward_axis`)
+        let (ax, l) = if self.vehicle {
+            (self.axes.rows[i], self.axes.lever)
+        } else {
+            let mut e = [0.0; 3];
+            e[i] = 1.0;
+            (e, self.p.lever)
+        };
         let vb = rotate_t(&self.c, &self.v);
-        let l = self.p.lever;
         let wl = cross(omega, &l);
-        let val = vb[i] - wl[i];
-        // c_i: column i of C (body axis i in NED)
-        let ci = [self.c[0][i], self.c[1][i], self.c[2][i]];
+        let val = (0..3).map(|k| ax[k] * (vb[k] - wl[k])).sum::<f64>();
+        // the axis in NED
+        let ci = rotate(&self.c, &ax);
         let hth = cross(&ci, &self.v);
-        // -[l×] row i
+        // -a^T [l×]
         let lx = [[0.0, -l[2], l[1]], [l[2], 0.0, -l[0]], [-l[1], l[0], 0.0]];
         let mut h = [0.0; N];
         for j in 0..3 {
             h[TH + j] = hth[j];
             h[VE + j] = ci[j];
-            h[BI + j] = -lx[i][j];
+            h[BI + j] = -(0..3).map(|k| ax[k] * lx[k][j]).sum::<f64>();
         }
         (val, h)
     }

@@ -39,6 +39,7 @@
 //! read it, or velocity constraints refused most of the time) restarts from
 //! the prior (flagged, counted).
 
+mod forward_axis;
 mod gap;
 mod gravity_lp;
 mod kalman;
@@ -47,6 +48,7 @@ mod motion_model;
 mod params;
 mod tick;
 
+use forward_axis::{PullAways, VehicleAxes};
 use gravity_lp::{GravityLp, LpGains};
 pub use params::{MagUse, MekfParams, Vehicle};
 
@@ -202,6 +204,9 @@ pub struct MekfCounters {
     /// Times the filter restarted from its prior because its bias left the
     /// range the part allows (a diverged state, never a real bias).
     pub restarts: u64,
+    /// Times the vehicle constraint's axes were turned to the way the car
+    /// pulls away (`forward_axis`: a unit turned about the vertical).
+    pub reaxed: u64,
 }
 
 #[derive(Clone, Debug)]
@@ -222,6 +227,10 @@ pub struct Mekf {
     /// gravity's lag (`gravity_lp_update`).
     c_lag: Mat3,
     level: LevelWindow,
+    /// The car's axes in the body frame, and the pull-aways that turn them
+    /// (`forward_axis`).
+    axes: VehicleAxes,
+    pulls: PullAways,
     cov: [[f64; N]; N],
     dx: [f64; N],
     acc: Accum,
@@ -314,6 +323,7 @@ pub struct Mekf {
 impl Mekf {
     pub fn new(p: MekfParams, switching: Switching) -> Mekf {
         let rest = RestDetector::new(p.rest);
+        let axes = VehicleAxes::new(0.0, p.lever);
         Mekf {
             p,
             started: false,
@@ -325,6 +335,8 @@ impl Mekf {
             f_lp: None,
             c_lag: quat::to_matrix(&[1.0, 0.0, 0.0, 0.0]),
             level: LevelWindow::default(),
+            axes,
+            pulls: PullAways::default(),
             cov: [[0.0; N]; N],
             dx: [0.0; N],
             acc: Accum::default(),
@@ -471,7 +483,9 @@ impl Mekf {
 
     /// Forward speed at the rear axle, m/s.
     pub fn forward_speed(&self) -> f64 {
-        rotate_t(&self.c, &self.v)[0]
+        let vb = rotate_t(&self.c, &self.v);
+        let x = self.axes.rows[0];
+        x[0] * vb[0] + x[1] * vb[1] + x[2] * vb[2]
     }
 
     /// The wheel-speed scale error estimate.
@@ -525,7 +539,7 @@ impl Mekf {
             // The velocity is the sensor's: it holds the lever arm's turn
             // (ω × l) at the rate before the gap. Turn it to the rate now.
             let dw = [w[0] - self.last_w[0], w[1] - self.last_w[1], w[2] - self.last_w[2]];
-            let d = rotate(&self.c, &cross(&dw, &self.p.lever));
+            let d = rotate(&self.c, &cross(&dw, &self.axes.lever));
             for i in 0..3 {
                 self.v[i] += d[i];
             }

@@ -27,20 +27,36 @@ fn perturbed(m: &Mekf, k: usize, eps: f64) -> Mekf {
 /// prediction: `z_pred(x ⊕ dx) - z_pred(x) = H dx`.
 #[test]
 fn measurement_rows_match_finite_differences() {
-    let m = filter();
+    let mut m = filter();
     // the rate is the measured gyro less the bias the state holds
     let gyro = [0.05, -0.1, 0.3];
     let omega = |f: &Mekf| [gyro[0] - f.bias[0], gyro[1] - f.bias[1], gyro[2] - f.bias[2]];
     let eps = 1e-6;
-    for axis in 0..3 {
-        let (v0, h) = m.body_velocity_row(axis, &omega(&m));
-        for k in 0..N {
-            let p = perturbed(&m, k, eps);
-            let (v1, _) = p.body_velocity_row(axis, &omega(&p));
-            let fd = (v1 - v0) / eps;
-            assert!((fd - h[k]).abs() < 1e-4 * (1.0 + h[k].abs()), "velocity axis {axis} state {k}: {fd} vs {}", h[k]);
+    // the car's axes as configured, and turned to its pull-aways (the
+    // lever arm, in the car's axes, turned with them); and a free unit's
+    for (vehicle, yaw) in [(true, 0.0), (true, 0.7), (false, 0.7)] {
+        m.vehicle = vehicle;
+        m.axes = forward_axis::VehicleAxes::new(yaw, m.p.lever);
+        for axis in 0..3 {
+            let (v0, h) = m.body_velocity_row(axis, &omega(&m));
+            for k in 0..N {
+                let p = perturbed(&m, k, eps);
+                let (v1, _) = p.body_velocity_row(axis, &omega(&p));
+                let fd = (v1 - v0) / eps;
+                assert!((fd - h[k]).abs() < 1e-4 * (1.0 + h[k].abs()), "yaw {yaw} velocity axis {axis} state {k}: {fd} vs {}", h[k]);
+            }
+        }
+        // a car driving along its (turned) x axis, not turning: the lateral
+        // and vertical rows read zero, the forward one its speed
+        if vehicle {
+            let mut c = m.clone();
+            c.v = rotate(&c.c, &c.axes.rows[0].map(|v| v * 8.0));
+            let rows: Vec<f64> = (0..3).map(|axis| c.body_velocity_row(axis, &[0.0; 3]).0).collect();
+            assert!((rows[0] - 8.0).abs() < 1e-12 && rows[1].abs() < 1e-12 && rows[2].abs() < 1e-12, "yaw {yaw}: {rows:?}");
         }
     }
+    m.vehicle = true;
+    m.axes = forward_axis::VehicleAxes::new(0.0, m.p.lever);
     // heading: the prediction is the heading of C m (the field fixed in NED)
     let mb = [0.1, 0.3, 0.35];
     let psi = |f: &Mekf| {

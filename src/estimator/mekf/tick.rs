@@ -185,6 +185,8 @@ impl Mekf {
             self.counters.reacquired += 1;
         }
         self.inject();
+        // a pull-away after a still period shows the car's x axis
+        self.watch_pull_aways(&a, still);
         let (pb, ps) = self.prior;
         // Before a standstill (or a saved state) has shown the bias, a bias
         // beyond the part's range is the filter's divergence, not the part;

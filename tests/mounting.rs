@@ -1,0 +1,105 @@
+//! A unit turned about the vertical in its car and not configured so
+//! (`[mounting]` left at zero): the vehicle constraint's axes are turned to
+//! the way the car pulls away from its standstills
+//! (`src/estimator/mekf/forward_axis.rs`); a unit mounted as configured never
+//! has them turned.
+
+use gyrocomp::config::Config;
+use gyrocomp::estimator::quat::euler;
+use gyrocomp::estimator::Estimate;
+use gyrocomp::replay::{replay_files, ReplayFiles, Summary};
+use gyrocomp::sim::motion::c_nb;
+use gyrocomp::sim::{mounting_matrix, simulate, SimOptions};
+
+/// Replay a simulated run's log with its config, `edit`ed.
+fn replay(dir: &std::path::Path, edit: impl FnOnce(&mut Config)) -> (Vec<Estimate>, Summary) {
+    let mut cfg = Config::load(&dir.join("config.toml")).unwrap();
+    edit(&mut cfg);
+    let mut est = Vec::new();
+    let sum = replay_files(&cfg, &ReplayFiles { input: &dir.join("imu.log"), output: None, csv: None }, Some(&mut est)).unwrap();
+    (est, sum)
+}
+
+/// truth.csv: (t, roll, pitch, yaw) in deg, the vehicle's.
+fn truth(dir: &std::path::Path) -> Vec<[f64; 4]> {
+    let text = std::fs::read_to_string(dir.join("truth.csv")).unwrap();
+    text.lines()
+        .skip(1)
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').take(4).map(|x| x.parse().unwrap()).collect();
+            [v[0], v[1], v[2], v[3]]
+        })
+        .collect()
+}
+
+/// The largest roll and pitch error (deg) from `from_s` on of estimates in
+/// the sensor's own frame (no `[mounting]`) against the truth turned into
+/// it: `C_ns = C_nv M`, M the sensor frame in the vehicle frame.
+fn sensor_frame_max_error(est: &[Estimate], truth: &[[f64; 4]], mounting: [f64; 3], from_s: f64) -> (f64, f64) {
+    let m = mounting_matrix(mounting);
+    let d = std::f64::consts::PI / 180.0;
+    let wrap = |a: f64| (a + 540.0) % 360.0 - 180.0;
+    let (mut roll, mut pitch) = (0.0f64, 0.0f64);
+    for e in est.iter().filter(|e| e.t >= from_s) {
+        let k = truth.partition_point(|r| r[0] < e.t).min(truth.len() - 1);
+        let c = c_nb(truth[k][1] * d, truth[k][2] * d, truth[k][3] * d);
+        let cs: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|l| c[i][l] * m[l][j]).sum()));
+        let want = euler(&cs);
+        roll = roll.max(wrap(e.roll - want[0] / d).abs());
+        pitch = pitch.max(wrap(e.pitch - want[1] / d).abs());
+    }
+    (roll, pitch)
+}
+
+/// Simulated urban drives (IMU only, parked start) with the unit turned
+/// 90 and -60 deg about the vertical and no `[mounting]`: from the second
+/// half on, roll and pitch in the unit's own frame are as good as with the
+/// mounting configured (0.3-0.7 deg; the commit before this one: 3-7.5 deg,
+/// the constraint reading the car's accelerations as roll and pitch), and
+/// the summary says which yaw the mounting has.
+#[test]
+fn a_unit_turned_in_its_car_without_its_mounting_drives_along_the_pull_aways() {
+    let t = tempfile::tempdir().unwrap();
+    for (seed, yaw) in [(4u64, 90.0), (2, -60.0)] {
+        let mut o = SimOptions::new("urban", seed);
+        o.mounting = Some([0.0, 0.0, yaw]);
+        let d = t.path().join(format!("run{seed}"));
+        simulate(&o, &d).unwrap();
+        let (est, sum) = replay(&d, |c| {
+            c.mounting.rotation = [0.0; 3];
+            c.mounting.lever_arm = [0.0; 3];
+        });
+        let text = sum.render();
+        println!("seed {seed}, turned {yaw} deg:\n{text}");
+        let mekf = sum.report.mekf.unwrap();
+        assert_eq!(mekf.reaxed, 1, "{text}");
+        let (turned, pulls) = sum.report.vehicle_axes.unwrap();
+        // the axes are the car's x axis in the unit's frame: -yaw
+        assert!((turned + yaw).abs() < 3.0, "axes turned {turned} deg for a unit turned {yaw}:\n{text}");
+        assert!(pulls >= 2, "{pulls} pull-aways");
+        assert!(text.contains(&format!("[mounting] rotation yaw {:.1}", -turned)), "{text}");
+        let (roll, pitch) = sensor_frame_max_error(&est, &truth(&d), [0.0, 0.0, yaw], 200.0);
+        println!("  max roll / pitch error from 200 s: {roll:.2} / {pitch:.2} deg");
+        assert!(roll < 1.0 && pitch < 1.0, "seed {seed}: max roll {roll:.2} pitch {pitch:.2} deg from 200 s");
+    }
+}
+
+/// A unit mounted as configured: whatever the drive (urban with its
+/// reversing and junction pull-aways, the vehicle scenario's smooth cruise
+/// taken for standstills, powered on while driving), its axes never turn.
+#[test]
+fn a_unit_mounted_as_configured_keeps_its_axes() {
+    let t = tempfile::tempdir().unwrap();
+    for (scenario, seed, moving) in [("urban", 1u64, false), ("urban", 3, true), ("vehicle", 15, false), ("paper", 3, true)] {
+        let mut o = SimOptions::new(scenario, seed);
+        o.power_on_moving = moving;
+        let d = t.path().join(format!("{scenario}{seed}{moving}"));
+        simulate(&o, &d).unwrap();
+        let (_, sum) = replay(&d, |_| {});
+        let mekf = sum.report.mekf.unwrap();
+        let (turned, pulls) = sum.report.vehicle_axes.unwrap();
+        println!("{scenario} seed {seed} moving {moving}: {pulls} pull-aways, axes turned {turned} deg");
+        assert_eq!(mekf.reaxed, 0, "{scenario} seed {seed}: axes turned {turned} deg\n{}", sum.render());
+        assert_eq!(turned, 0.0);
+    }
+}
