@@ -95,7 +95,7 @@ impl Report {
             };
             if let (Some((yaw, pulls)), true) = (self.vehicle_axes, c.reaxed > 0) {
                 s += &format!(
-                    "vehicle axes: turned {yaw:.1} deg about the unit's z axis to the way the car pulled away ({pulls} pull-aways from standstills): the unit is mounted turned; [mounting] rotation yaw {:.1} deg would say so (gyrocomp align)\n",
+                    "vehicle axes: turned {yaw:.1} deg about the unit's z axis to the way the car pulled away ({pulls} pull-aways after still periods): the unit is mounted turned; [mounting] rotation yaw {:.1} deg would say so (gyrocomp align)\n",
                     -yaw
                 );
             }

@@ -20,7 +20,7 @@ use anyhow::Context;
 use notify::Notifier;
 use socketcan::tokio::CanSocket;
 use socketcan::{CanFilter, CanFrame, EmbeddedFrame, SocketOptions, StandardId};
-use state::{State, Store};
+use state::{SavedAxes, State, Store};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -193,7 +193,7 @@ pub fn state_dir(cfg: &Config) -> Option<PathBuf> {
 }
 
 /// Build a pipeline, with the saved state as its prior when there is one.
-fn build_pipeline(cfg: &Config, store: Option<&Store>, carry: Option<crate::estimator::Learned>) -> Pipeline {
+fn build_pipeline(cfg: &Config, store: Option<&Store>, carry: Option<(crate::estimator::Learned, Option<SavedAxes>)>) -> Pipeline {
     // the config was checked at load; a DBC gone since is an IMU-only run, logged
     let speed = crate::speed::load(cfg).unwrap_or_else(|e| {
         warn!(error = %e, "speed source unusable: IMU only");
@@ -203,8 +203,12 @@ fn build_pipeline(cfg: &Config, store: Option<&Store>, carry: Option<crate::esti
         info!(message = d.message(), id = format!("{:#x}", d.id().0), "vehicle speed from the bus");
     }
     let mut pipe = Pipeline::with_speed(cfg, speed);
-    if let Some(l) = carry {
+    if let Some((l, axes)) = carry {
         pipe.estimator_mut().set_prior(l);
+        // the turned vehicle axes mean something under the same mounting only
+        if let Some(a) = axes.filter(|a| a.mounting == cfg.mounting.rotation) {
+            pipe.estimator_mut().set_vehicle_axes(a.yaw_deg);
+        }
         return pipe;
     }
     if let Some(store) = store {
@@ -213,6 +217,16 @@ fn build_pipeline(cfg: &Config, store: Option<&Store>, carry: Option<crate::esti
                 let p = st.prior(now_unix(), cfg.ekf.bias_walk, 0.0);
                 info!(bias = ?p.bias, sigma = ?p.bias_sigma, temp = p.temp, path = %store.path.display(), "loaded learned bias");
                 pipe.estimator_mut().set_prior(p);
+                match st.axes_for(cfg.mounting.rotation) {
+                    Some(yaw) if pipe.estimator_mut().set_vehicle_axes(yaw) => {
+                        info!(
+                            yaw_deg = yaw,
+                            "loaded the vehicle axes the pull-aways turned ([mounting] rotation yaw {:.1} would say so)", -yaw
+                        )
+                    }
+                    None if st.vehicle_axes.is_some() => warn!("saved vehicle axes were found under another [mounting] rotation: not used"),
+                    _ => {}
+                }
                 if let Some(sl) = &st.slope {
                     if pipe.estimator_mut().set_slope_state(sl) {
                         info!(cycles = sl.cycles, spread = sl.spread, "loaded the thermal slope learner");
@@ -228,9 +242,11 @@ fn build_pipeline(cfg: &Config, store: Option<&Store>, carry: Option<crate::esti
     pipe
 }
 
-fn save_state(store: Option<&Store>, pipe: &Pipeline) {
+fn save_state(store: Option<&Store>, pipe: &Pipeline, mounting: [f64; 3]) {
     let (Some(store), Some(l)) = (store, pipe.estimator().learned()) else { return };
-    match store.save(&State::from_learned(&l, now_unix(), pipe.estimator().slope_state())) {
+    let mut st = State::from_learned(&l, now_unix(), pipe.estimator().slope_state());
+    st.vehicle_axes = pipe.estimator().vehicle_axes_turned().map(|yaw_deg| SavedAxes { yaw_deg, mounting });
+    match store.save(&st) {
         Ok(()) => tracing::debug!(path = %store.path.display(), "state saved"),
         Err(e) => warn!("saving state: {e}"),
     }
@@ -327,7 +343,8 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
                     match Config::load(&config_path) {
                         Ok(new) => {
                             let was_speed = pipe.speed_id();
-                            let carry = pipe.estimator().learned();
+                            let axes = pipe.estimator().vehicle_axes_turned().map(|yaw_deg| SavedAxes { yaw_deg, mounting: cfg.mounting.rotation });
+                            let carry = pipe.estimator().learned().map(|l| (l, axes));
                             let bus_changed = new.can.interface != cfg.can.interface || new.input.ids != cfg.input.ids || new.daemon.error_frames != cfg.daemon.error_frames;
                             cfg = new;
                             store = state_dir(&cfg).map(|d| Store::new(&d));
@@ -438,14 +455,14 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
                     }
                     if now.duration_since(last_save).as_secs_f64() >= cfg.daemon.save_every_s {
                         last_save = now;
-                        save_state(store.as_ref(), &pipe);
+                        save_state(store.as_ref(), &pipe, cfg.mounting.rotation);
                     }
                 }
             }
         }
     }
     notifier.stopping();
-    save_state(store.as_ref(), &pipe);
+    save_state(store.as_ref(), &pipe, cfg.mounting.rotation);
     let c = pipe.counters();
     info!(
         samples = c.samples,

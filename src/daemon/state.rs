@@ -31,6 +31,21 @@ pub struct State {
     /// The thermal slope learner's sums, when field learning is on.
     #[serde(default)]
     pub slope: Option<SlopeState>,
+    /// The vehicle axes the pull-aways turned (a unit mounted turned and
+    /// not configured so), with the `[mounting]` they were found under.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vehicle_axes: Option<SavedAxes>,
+}
+
+/// The default filter's turned vehicle axes (`Estimator::vehicle_axes_turned`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SavedAxes {
+    /// Their turn about the unit's z axis, deg.
+    pub yaw_deg: f64,
+    /// `[mounting] rotation` when they were found, deg: under another one
+    /// they mean nothing.
+    pub mounting: [f64; 3],
 }
 
 #[derive(Serialize, Deserialize)]
@@ -50,7 +65,12 @@ pub enum StateError {
 
 impl State {
     pub fn from_learned(l: &Learned, saved_unix: f64, slope: Option<SlopeState>) -> State {
-        State { version: VERSION, bias: l.bias, bias_sigma: l.bias_sigma, temp: l.temp, saved_unix, slope }
+        State { version: VERSION, bias: l.bias, bias_sigma: l.bias_sigma, temp: l.temp, saved_unix, slope, vehicle_axes: None }
+    }
+
+    /// The saved vehicle axes if they were found under `mounting`.
+    pub fn axes_for(&self, mounting: [f64; 3]) -> Option<f64> {
+        self.vehicle_axes.filter(|a| a.mounting == mounting).map(|a| a.yaw_deg)
     }
 
     /// The prior for the estimator. The bias sigma grows with the age of the
@@ -67,6 +87,11 @@ impl State {
         }
         let ts = [self.temp, self.saved_unix];
         let all = self.bias.iter().chain(self.bias_sigma.iter()).chain(ts.iter());
+        if let Some(a) = &self.vehicle_axes {
+            if !(a.yaw_deg.is_finite() && a.yaw_deg.abs() <= 180.0 && a.mounting.iter().all(|v| v.is_finite())) {
+                return Err("vehicle axes out of range".into());
+            }
+        }
         let sl: Vec<f64> = match &self.slope {
             Some(s) => s.base.iter().chain(s.sty.iter()).copied().chain([s.stt, s.spread]).collect(),
             None => Vec::new(),
@@ -140,7 +165,15 @@ mod tests {
     use super::*;
 
     fn st() -> State {
-        State { version: VERSION, bias: [0.1, -0.2, 0.3], bias_sigma: [0.01; 3], temp: 33.5, saved_unix: 1000.0, slope: None }
+        State {
+            version: VERSION,
+            bias: [0.1, -0.2, 0.3],
+            bias_sigma: [0.01; 3],
+            temp: 33.5,
+            saved_unix: 1000.0,
+            slope: None,
+            vehicle_axes: None,
+        }
     }
 
     #[test]
@@ -156,6 +189,23 @@ mod tests {
         let with = State { slope: Some(sl), ..st() };
         s.save(&with).unwrap();
         assert_eq!(s.load().unwrap(), Some(with));
+        // with turned vehicle axes: kept for the mounting they were found
+        // under only
+        let axes = State { vehicle_axes: Some(SavedAxes { yaw_deg: -89.8, mounting: [0.0, 0.0, 0.0] }), ..st() };
+        s.save(&axes).unwrap();
+        let back = s.load().unwrap().unwrap();
+        assert_eq!(back, axes);
+        assert_eq!(back.axes_for([0.0; 3]), Some(-89.8));
+        assert_eq!(back.axes_for([0.0, 0.0, 90.0]), None);
+        // a file without them (as written before they existed) loads
+        s.save(&st()).unwrap();
+        assert!(!fs::read_to_string(&s.path).unwrap().contains("vehicle_axes"));
+        assert_eq!(s.load().unwrap().unwrap().axes_for([0.0; 3]), None);
+        // out of range: refused as corrupt
+        for yaw in [f64::NAN, 400.0] {
+            let bad = State { vehicle_axes: Some(SavedAxes { yaw_deg: yaw, mounting: [0.0; 3] }), ..st() };
+            assert!(bad.valid().is_err(), "{yaw}");
+        }
     }
 
     #[test]

@@ -321,6 +321,26 @@ impl Estimator {
         self.prior = Some(prior);
     }
 
+    /// The default filter's vehicle axes as the pull-aways turned them (deg
+    /// about the unit's z axis), for saving; None when they are the
+    /// configured ones (or in the paper's modes).
+    pub fn vehicle_axes_turned(&self) -> Option<f64> {
+        self.mekf().map(|m| m.vehicle_axes().0).filter(|y| *y != 0.0)
+    }
+
+    /// Start with the default filter's vehicle axes turned (deg, from
+    /// `vehicle_axes_turned` before a restart). Returns whether it applies
+    /// (the default mode).
+    pub fn set_vehicle_axes(&mut self, yaw_deg: f64) -> bool {
+        match &mut self.filter {
+            Filter::Mekf(m) => {
+                m.set_vehicle_axes(yaw_deg);
+                true
+            }
+            Filter::Paper(_) => false,
+        }
+    }
+
     /// The bias the estimator holds now and at what temperature, for saving:
     /// the bias of the last sample that learned it.
     pub fn learned(&self) -> Option<Learned> {

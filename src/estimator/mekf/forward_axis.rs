@@ -199,8 +199,9 @@ impl Mekf {
         // the axes in use, within +-90 deg
         let d = wrap_pi(2.0 * (yaw - self.axes.yaw)) / 2.0;
         if d.abs() <= REAXIS_ANGLE {
-            // once turned, they follow the pull-aways' mean
-            if self.counters.reaxed > 0 && d.abs() > REFINE_ANGLE {
+            // once turned (here or before a restart), they follow the
+            // pull-aways' mean
+            if self.axes.yaw != 0.0 && d.abs() > REFINE_ANGLE {
                 self.axes = VehicleAxes::new(yaw, self.p.lever);
             }
             return false;
@@ -220,5 +221,14 @@ impl Mekf {
     /// (0 unless the pull-aways turned them), and the pull-aways seen.
     pub fn vehicle_axes(&self) -> (f64, u32) {
         (self.axes.yaw / D2R, self.pulls.count())
+    }
+
+    /// Start with the vehicle axes turned by `yaw_deg` about the body z axis
+    /// (what the pull-aways found before a restart, under the same
+    /// `[mounting]`); later pull-aways still turn them.
+    pub fn set_vehicle_axes(&mut self, yaw_deg: f64) {
+        if yaw_deg.is_finite() {
+            self.axes = VehicleAxes::new(wrap_pi(yaw_deg * D2R), self.p.lever);
+        }
     }
 }
