@@ -62,6 +62,7 @@ impl Mekf {
         a.accel = [0.0; 3];
         self.rest.reset();
         self.switching.reset();
+        self.pulls.gap();
         self.dwell = 0.0;
         self.still_speed = None;
         self.after_gap = true;
