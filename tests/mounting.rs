@@ -139,3 +139,41 @@ fn a_restart_starts_with_the_axes_the_pull_aways_found() {
     // it keeps them (no pull-away disagrees), and says so
     assert_eq!(e.vehicle_axes_turned(), Some(turned));
 }
+
+/// A daemon restarted while the car drives, with the turned axes restored
+/// (`[mounting] rotation` left at zero, its lever arm configured in the
+/// car's axes): its power-on speed hypotheses lie along the car's forward
+/// axis (the axes in use), so the one near the car's speed is there to be
+/// published. The unit turned 90 deg, the axes a parked run's pull-aways
+/// found, urban seeds 1 and 7 powered on while driving: roll and pitch within
+/// 2 deg from 10 s (1.8/1.6 and 0.9/0.7; with the hypotheses along the
+/// unit's x axis, i.e. across the car, seed 1 had 14.5/5.2).
+#[test]
+fn a_restart_while_driving_puts_its_speed_hypotheses_along_the_restored_axes() {
+    let t = tempfile::tempdir().unwrap();
+    let turned_unit = |seed: u64, moving: bool| {
+        let mut o = SimOptions::new("urban", seed);
+        o.mounting = Some([0.0, 0.0, 90.0]);
+        o.power_on_moving = moving;
+        let d = t.path().join(format!("run{seed}{moving}"));
+        simulate(&o, &d).unwrap();
+        d
+    };
+    let unconfigured = |c: &mut Config| c.mounting.rotation = [0.0; 3];
+    let (_, sum) = replay(&turned_unit(4, false), unconfigured);
+    let (turned, _) = sum.report.vehicle_axes.unwrap();
+    assert!((turned + 90.0).abs() < 3.0, "the parked run's axes: {turned}");
+    for seed in [1, 7] {
+        let d = turned_unit(seed, true);
+        let mut cfg = Config::load(&d.join("config.toml")).unwrap();
+        unconfigured(&mut cfg);
+        let decoded = gyrocomp::reference::decode(std::fs::File::open(d.join("imu.log")).unwrap(), &cfg, "imu.log").unwrap();
+        let mut e = Estimator::new(&cfg);
+        assert!(e.set_vehicle_axes(turned));
+        let est: Vec<Estimate> = decoded.samples.iter().map(|s| e.step(s)).collect();
+        let (roll, pitch) = sensor_frame_max_error(&est, &truth(&d), [0.0, 0.0, 90.0], 10.0);
+        let speed = e.power_on_speed().map(|p| p.speed_ms);
+        println!("seed {seed}, axes {turned:.1} deg restored, powered on driving: hypothesis {speed:?} m/s, max roll / pitch from 10 s {roll:.2} / {pitch:.2}");
+        assert!(roll < 2.0 && pitch < 2.0, "seed {seed}: max roll {roll:.2} pitch {pitch:.2} deg from 10 s");
+    }
+}

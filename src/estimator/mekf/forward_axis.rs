@@ -132,11 +132,11 @@ impl Mekf {
     /// Once per tick after its updates, while the vehicle model is in use
     /// (IMU only): sum a still period, then the first `PULL_WINDOW_S` of
     /// motion after it, take that as a pull-away, and turn the constraint's
-    /// axes when the pull-aways agree on others. Returns whether it turned them.
-    pub(super) fn watch_pull_aways(&mut self, a: &Accum, still: bool) -> bool {
+    /// axes when the pull-aways agree on others.
+    pub(super) fn watch_pull_aways(&mut self, a: &Accum, still: bool) {
         if !self.vehicle || self.p.speed_aided || a.n == 0 {
             self.pulls.armed = false;
-            return false;
+            return;
         }
         let pa = &mut self.pulls;
         let n = a.n as f64;
@@ -158,10 +158,10 @@ impl Mekf {
             pa.t = 0.0;
             pa.sum_a = [0.0; 3];
             pa.sum_r = 0.0;
-            return false;
+            return;
         }
         if !pa.armed {
-            return false;
+            return;
         }
         // down as the still period left it, turned by the gyro since (the
         // constraint held along wrong axes moves the filter's own tilt)
@@ -174,7 +174,7 @@ impl Mekf {
         pa.sum_r += (0..3).map(|i| down[i] * w[i]).sum::<f64>() * a.t;
         pa.t += a.t;
         if pa.t < PULL_WINDOW_S {
-            return false;
+            return;
         }
         pa.armed = false;
         // the acceleration: what the pull-away's force has more than the
@@ -186,7 +186,7 @@ impl Mekf {
         let e1 = [1.0 - xd * down[0], -xd * down[1], -xd * down[2]];
         let e1n = norm(&e1);
         if e1n < 0.3 || mean_r.abs() > PULL_MAX_TURN {
-            return false;
+            return;
         }
         let e1 = e1.map(|v| v / e1n);
         let e2 = cross(&down, &e1);
@@ -194,7 +194,7 @@ impl Mekf {
         let y = (0..3).map(|i| mean_a[i] * e2[i]).sum::<f64>();
         let a2 = x * x + y * y;
         if !a2.is_finite() || a2 < PULL_MIN_ACCEL * PULL_MIN_ACCEL {
-            return false;
+            return;
         }
         let phi = quat::atan2(y, x);
         pa.c2 += (2.0 * phi).cos();
@@ -202,7 +202,7 @@ impl Mekf {
         pa.c1 += phi.cos();
         pa.s1 += phi.sin();
         pa.n += 1;
-        let Some(yaw) = pa.agreed() else { return false };
+        let Some(yaw) = pa.agreed() else { return };
         // the constraint has no forward or backward: the line's turn from
         // the axes in use, within +-90 deg
         let d = wrap_pi(2.0 * (yaw - self.axes.yaw)) / 2.0;
@@ -212,7 +212,7 @@ impl Mekf {
             if self.axes.yaw != 0.0 && d.abs() > REFINE_ANGLE {
                 self.axes = VehicleAxes::new(yaw, self.p.lever);
             }
-            return false;
+            return;
         }
         self.axes = VehicleAxes::new(yaw, self.p.lever);
         self.counters.reaxed += 1;
@@ -222,7 +222,6 @@ impl Mekf {
         for i in 0..3 {
             self.cov[VE + i][VE + i] += dv * dv;
         }
-        true
     }
 
     /// The turn of the vehicle axes in use from the body's, deg about z

@@ -422,14 +422,16 @@ impl Mekf {
     /// x axis) with its 1-sigma; the lateral and vertical velocity keep
     /// `init_speed_sigma`. Call right after `start`; starts scoring.
     pub fn set_speed_hypothesis(&mut self, u: f64, sigma: f64) {
-        let c = self.c;
-        self.v = [c[0][0] * u, c[1][0] * u, c[2][0] * u];
+        // the car's axes in the navigation frame: E = C A^T, column k the
+        // car's axis k (A's row k, in the body) turned by the attitude
+        let e: [[f64; 3]; 3] = std::array::from_fn(|k| rotate(&self.c, &self.axes.rows[k]));
+        self.v = e[0].map(|x| x * u);
         let s2 = self.p.init_speed_sigma * self.p.init_speed_sigma;
         let d = [sigma * sigma, s2, s2];
-        // C diag(d) C^T: the forward axis's variance along the body x axis
+        // E diag(d) E^T: the forward speed's variance along the car's x axis
         for i in 0..3 {
             for j in 0..3 {
-                self.cov[VE + i][VE + j] = (0..3).map(|k| c[i][k] * d[k] * c[j][k]).sum();
+                self.cov[VE + i][VE + j] = (0..3).map(|k| e[k][i] * d[k] * e[k][j]).sum();
             }
         }
         self.set_scoring(true);

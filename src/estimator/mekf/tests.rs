@@ -355,3 +355,33 @@ fn a_free_unit_lying_still_is_standing_whatever_velocity_it_believes() {
     assert!(standing > 3.0, "standstill only {standing} s of 4");
     assert!(speed < 0.05, "the drifted velocity was kept: {speed} m/s");
 }
+
+/// A power-on speed hypothesis lies along the car's forward axis, also when
+/// the axes were turned from the body's (restored after a restart): its
+/// forward speed is the hypothesis, its variance along that axis is the
+/// hypothesis's and across it `init_speed_sigma`'s.
+#[test]
+fn a_speed_hypothesis_lies_along_the_cars_axes_when_they_are_turned() {
+    for yaw_deg in [0.0, 90.0, -60.0] {
+        let mut m = filter();
+        m.set_vehicle_axes(yaw_deg);
+        m.set_speed_hypothesis(12.0, 0.5);
+        assert!((m.forward_speed() - 12.0).abs() < 1e-9, "turned {yaw_deg}: forward speed {}", m.forward_speed());
+        // the velocity in the car's axes: along x only
+        let vb = rotate_t(&m.c, &m.v);
+        let rows = m.axes.rows;
+        let lateral: f64 = (0..3).map(|i| rows[1][i] * vb[i]).sum();
+        let vertical: f64 = (0..3).map(|i| rows[2][i] * vb[i]).sum();
+        assert!(lateral.abs() < 1e-9 && vertical.abs() < 1e-9, "turned {yaw_deg}: {lateral} {vertical}");
+        // the covariance seen along the car's axes
+        let axis = |k: usize| rotate(&m.c, &rows[k]);
+        let var = |k: usize| {
+            let e = axis(k);
+            (0..3).map(|i| (0..3).map(|j| e[i] * m.cov[VE + i][VE + j] * e[j]).sum::<f64>()).sum::<f64>()
+        };
+        let s2 = m.p.init_speed_sigma * m.p.init_speed_sigma;
+        assert!((var(0) - 0.25).abs() < 1e-9, "turned {yaw_deg}: forward variance {}", var(0));
+        assert!((var(1) - s2).abs() < 1e-9, "turned {yaw_deg}: lateral variance {}", var(1));
+        assert!((var(2) - s2).abs() < 1e-9, "turned {yaw_deg}: vertical variance {}", var(2));
+    }
+}
