@@ -81,7 +81,7 @@ fn bench(c: &mut Criterion) {
         });
     }
     // The first second after power-on: the default filter runs its bank of
-    // power-on speed hypotheses (seven filters) until the first standstill
+    // power-on speed hypotheses (seven filters, and the free copy) until the first standstill
     // or 60 s; per sample, a fresh estimator each batch.
     let first = (204.8f64) as usize;
     g.throughput(Throughput::Elements(first as u64));

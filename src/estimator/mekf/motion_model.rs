@@ -65,6 +65,22 @@ impl Mekf {
         }
     }
 
+    /// With `vehicle = "auto"` (IMU only), a copy of this filter just
+    /// started that runs the free unit's model from here on: what the
+    /// filter would have been had it known from power-on that the unit is
+    /// not in a vehicle (the power-on bank keeps it, `hypotheses.rs`).
+    /// None when the vehicle model is configured or the speed measured.
+    pub fn free_unit_copy(&self) -> Option<Mekf> {
+        if !(self.vehicle && self.p.vehicle == Vehicle::Auto && !self.p.speed_aided) {
+            return None;
+        }
+        // as `vehicle = false` starts: zero velocity, `init_speed_sigma`
+        let mut m = self.clone();
+        m.vehicle = false;
+        m.set_scoring(false);
+        Some(m)
+    }
+
     /// A free unit's velocity: zero, `free_velocity_sigma`, uncorrelated.
     pub(super) fn free_velocity(&mut self) {
         self.decorrelate(&[VE, VE + 1, VE + 2]);

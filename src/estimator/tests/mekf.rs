@@ -599,6 +599,44 @@ fn mekf_speed_hypotheses_end_at_the_first_standstill_or_for_a_hand_held_unit() {
     assert_eq!(e2.power_on_speed(), None);
 }
 
+#[test]
+fn mekf_a_hand_taken_for_a_car_at_power_on_goes_on_as_if_never_taken_for_one() {
+    // Powered on in a hand that first moves the way a car body does (a few
+    // deg/s of roll/pitch rate, 0.15 g back and forth), so `"auto"` keeps
+    // the vehicle model, then jitters at tens of deg/s from 8 s, so it
+    // leaves it. Meanwhile the vehicle model took the hand's motion for a
+    // car's and taught the bias (no standstill yet) from it; the power-on
+    // bank ran the filter as a free unit beside it from power-on, and that
+    // one goes on: from the switch, the estimate is that of a unit set
+    // `vehicle = false`, to the bit.
+    let bias = [1.5, -1.0, 0.5];
+    let mut m = Motion::new(204.8, bias, 3.0, -2.0, 30.0);
+    let mut auto = mekf("");
+    let mut free = mekf("[mekf]\nvehicle = false\n");
+    let (mut left, mut worst) = (None, 0.0f64);
+    for k in 0..(204.8 * 30.0) as u32 {
+        let t = k as f64 / 204.8;
+        let j = if t >= 8.0 { 25.0 } else { 4.0 };
+        let w = [j * (2.0 * PI * 1.7 * t).sin(), j * (2.0 * PI * 1.3 * t).cos(), 6.0 * (2.0 * PI * 0.2 * t).sin()];
+        let a = [0.15 * (2.0 * PI * 0.3 * t).sin(), 0.1 * (2.0 * PI * 0.4 * t).cos(), 0.0];
+        let s = m.step(w, a);
+        let (x, y) = (auto.step(&s), free.step(&s));
+        if left.is_none() && !auto.mekf().unwrap().vehicle() {
+            left = Some(t);
+        }
+        if left.is_some() {
+            assert_eq!((x.roll, x.pitch, x.yaw, x.bias), (y.roll, y.pitch, y.yaw, y.bias), "at {t:.3} s");
+            let truth = m.euler();
+            worst = worst.max(angle_err(x.roll, truth[0]).max(angle_err(x.pitch, truth[1])));
+        }
+    }
+    let left = left.expect("the jittering hand was taken for a car throughout");
+    assert!((8.0..12.0).contains(&left), "left the vehicle model at {left:.2} s");
+    let p = auto.power_on_speed().unwrap();
+    assert!(matches!(p.ended, Some((_, BankEnd::NotVehicle))), "{p:?}");
+    println!("left the vehicle model at {left:.2} s; roll/pitch error from then on at most {worst:.2} deg");
+}
+
 /// A hand-held unit shaken back and forth: 10 s still (the bias is
 /// learned), then 40 s moved along north and east at `amp_g` (0.5 and
 /// 0.4 Hz, velocity about zero, no rotation). Returns the worst roll or
