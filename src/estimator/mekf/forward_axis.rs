@@ -33,9 +33,13 @@
 //! pull-away reaches. Outputs stay in the configured frame; the summary and
 //! the daemon's status tell the `[mounting]` yaw that would have spared it.
 //!
-//! Not with wheel speeds (their speed is along the configured x axis). A
-//! unit powered on while driving gets its axes at its first still periods;
-//! until then nothing tells the car's acceleration from a tilt.
+//! With wheel speeds the car's speed is measured along the axes in use, so
+//! forward matters, and the wheels' speed has no sign (a car reversing out
+//! of its space reads one too): the axes turn, or turn round for a unit
+//! mounted backwards, only when the pull-aways clearly went one way along
+//! their line (`SPEED_FORWARD_SHARE`). A unit powered on while driving gets
+//! its axes at its first still periods; until then nothing tells the car's
+//! acceleration from a tilt.
 
 use super::*;
 
@@ -54,6 +58,10 @@ const AGREEMENT: f64 = 0.95;
 /// once turned, they follow its mean by steps of `REFINE_ANGLE`.
 const REAXIS_ANGLE: f64 = 15.0 * D2R;
 const REFINE_ANGLE: f64 = 0.5 * D2R;
+/// With wheel speeds (unsigned: a car reversing reads a speed too) the
+/// axes turn only when the pull-aways went one way along their line this
+/// clearly: (forward - backward) / all, 0.5 = three in four forward.
+const SPEED_FORWARD_SHARE: f64 = 0.5;
 
 /// The vehicle's axes in the body frame: the car's x, y, z (rows) for a
 /// turn `yaw` (rad) about the body z axis, and the lever arm (given in the
@@ -101,8 +109,9 @@ pub(super) struct PullAways {
 
 impl PullAways {
     /// The line the pull-aways agree on, forward as most went (rad from the
-    /// body x axis toward y), once `PULLS_NEEDED` of them agree.
-    fn agreed(&self) -> Option<f64> {
+    /// body x axis toward y), once `PULLS_NEEDED` of them agree; and how
+    /// clearly they went that way: (forward - backward) / all, about.
+    fn agreed(&self) -> Option<(f64, f64)> {
         if self.n < PULLS_NEEDED {
             return None;
         }
@@ -113,7 +122,8 @@ impl PullAways {
         let line = 0.5 * quat::atan2(self.s2, self.c2);
         // forward: the way most of them went along that line
         let along = self.c1 * line.cos() + self.s1 * line.sin();
-        Some(if along < 0.0 { wrap_pi(line + std::f64::consts::PI) } else { line })
+        let share = along.abs() / n;
+        Some(if along < 0.0 { (wrap_pi(line + std::f64::consts::PI), share) } else { (line, share) })
     }
 
     /// Pull-aways taken so far.
@@ -129,12 +139,12 @@ impl PullAways {
 }
 
 impl Mekf {
-    /// Once per tick after its updates, while the vehicle model is in use
-    /// (IMU only): sum a still period, then the first `PULL_WINDOW_S` of
+    /// Once per tick after its updates, while the vehicle model is in use:
+    /// sum a still period, then the first `PULL_WINDOW_S` of
     /// motion after it, take that as a pull-away, and turn the constraint's
     /// axes when the pull-aways agree on others.
     pub(super) fn watch_pull_aways(&mut self, a: &Accum, still: bool) {
-        if !self.vehicle || self.p.speed_aided || a.n == 0 {
+        if !self.vehicle || a.n == 0 {
             self.pulls.armed = false;
             return;
         }
@@ -202,16 +212,25 @@ impl Mekf {
         pa.c1 += phi.cos();
         pa.s1 += phi.sin();
         pa.n += 1;
-        let Some(yaw) = pa.agreed() else { return };
+        let Some((yaw, forward_share)) = pa.agreed() else { return };
         // the constraint has no forward or backward: the line's turn from
         // the axes in use, within +-90 deg
         let d = wrap_pi(2.0 * (yaw - self.axes.yaw)) / 2.0;
-        if d.abs() <= REAXIS_ANGLE {
+        // with wheel speeds forward matters: a unit mounted backwards has
+        // the pull-aways' line but the opposite way
+        let backwards = wrap_pi(yaw - self.axes.yaw).abs() > std::f64::consts::FRAC_PI_2;
+        let flip = self.p.speed_aided && backwards && forward_share >= SPEED_FORWARD_SHARE;
+        if d.abs() <= REAXIS_ANGLE && !flip {
             // once turned (here or before a restart), they follow the
-            // pull-aways' mean
+            // pull-aways' mean, keeping their forward
             if self.axes.yaw != 0.0 && d.abs() > REFINE_ANGLE {
-                self.axes = VehicleAxes::new(yaw, self.p.lever);
+                self.axes = VehicleAxes::new(wrap_pi(self.axes.yaw + d), self.p.lever);
             }
+            return;
+        }
+        // the wheels' speed has no sign: with it, forward must be the way
+        // most pull-aways clearly went (a car reversing out of its space)
+        if self.p.speed_aided && forward_share < SPEED_FORWARD_SHARE {
             return;
         }
         self.axes = VehicleAxes::new(yaw, self.p.lever);
