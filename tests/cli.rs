@@ -222,6 +222,32 @@ fn evaluate_never_overwrites_an_input() {
     assert_eq!(names, ["attitude_error.svg", "bias.svg", "report.json"]);
 }
 
+/// A run simulated as another part (ADIS16465-1: 2 kHz, its own scales) is
+/// decoded and scored with its own config.toml when no --config is given
+/// (before, the built-in adis16448 at 204.8 Hz decoded it with another
+/// part's scales and rate: a unit lying still scored max roll 179.6, pitch
+/// 89.0 deg); a --config naming another part is refused, naming both.
+#[test]
+fn evaluate_decodes_a_simulated_run_as_its_own_part() {
+    let d = tempfile::tempdir().unwrap();
+    let run = d.path().join("run");
+    let o = gyrocomp(&["simulate", "--scenario", "static", "--duration", "30", "--profile", "adis16465-1", "--out", run.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let o = gyrocomp(&["evaluate", "--input", run.to_str().unwrap()]);
+    let out = text(&o.stdout);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(out.contains("-- scored over t = 10.0..30.0 s"), "{out}");
+    let row = out.lines().find(|l| l.starts_with("mekf")).unwrap_or_else(|| panic!("{out}"));
+    let v: Vec<f64> = row.split_whitespace().skip(1).map(|x| x.parse().unwrap()).collect();
+    assert!(v[0] < 1.0 && v[1] < 1.0, "a unit lying still, scored as its own part: max roll {} pitch {}\n{out}", v[0], v[1]);
+    let cfg = d.path().join("other.toml");
+    std::fs::write(&cfg, "[input]\nprofile = \"adis16448\"\n").unwrap();
+    let o = gyrocomp(&["evaluate", "--input", run.to_str().unwrap(), "--config", cfg.to_str().unwrap()]);
+    let err = text(&o.stderr);
+    assert!(!o.status.success());
+    assert!(err.contains("simulated as an adis16465-1 at 2000 Hz") && err.contains("the config's part is adis16448"), "{err}");
+}
+
 #[test]
 fn evaluate_tables_state_windows_and_units_and_warn_when_a_window_is_empty() {
     // a run that ends before the manoeuvres: no manoeuvres table, no oracle floor, no inf, a warning

@@ -34,6 +34,16 @@ pub fn evaluate_dir(cfg: &Config, dir: &Path, o: &EvalOptions) -> Result<String,
 /// report must not overwrite.
 pub fn evaluate_dir_with(cfg: &Config, dir: &Path, o: &EvalOptions, config_path: Option<&Path>) -> Result<String, String> {
     let data = RunData::load(dir)?;
+    let part = &cfg.input.profile;
+    if *part != data.info.profile {
+        return Err(format!(
+            "{}: the run was simulated as an {} at {} Hz, the config's part is {part}: its frames would be decoded with another part's scales (pass --config {})",
+            dir.display(),
+            data.info.profile,
+            data.info.rate_hz,
+            dir.join("config.toml").display()
+        ));
+    }
     let win = Window::of(&data);
     if o.score_from >= win.end {
         return Err(format!("--score-from {} s is at or after the end of the run ({:.1} s): nothing to score", o.score_from, win.end));

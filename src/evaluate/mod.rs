@@ -111,8 +111,10 @@ pub fn parse_seeds(s: &str) -> Result<std::ops::RangeInclusive<u64>, String> {
 #[derive(clap::Args, Debug)]
 #[command(group(clap::ArgGroup::new("what").required(true).args(["input", "seeds", "realdata"])))]
 pub struct EvaluateArgs {
-    /// gyrocomp config (TOML). Default: the built-in defaults. With --seeds its
-    /// [thermal] section is replaced by each simulated unit's calibration.
+    /// gyrocomp config (TOML). Default: with --input DIR the run's own
+    /// DIR/config.toml (the unit as simulated: its part, mounting, thermal
+    /// calibration), else the built-in defaults. With --seeds its [thermal]
+    /// section is replaced by each simulated unit's calibration.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// A `gyrocomp simulate` directory to replay and score, or with --reference a
@@ -180,7 +182,10 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
     if a.real.align_s.is_some() || a.real.offset != 0.0 {
         return Err("--align-s and --offset apply to a measured reference only (--reference or --realdata)".into());
     }
-    let cfg = match &a.config {
+    // a simulated run is decoded and scored with its own unit's config
+    // unless told otherwise (another part's scales and rate decode garbage)
+    let run_config = a.input.as_ref().map(|d| d.join("config.toml")).filter(|p| a.seeds.is_none() && p.is_file());
+    let cfg = match a.config.as_ref().or(run_config.as_ref()) {
         Some(p) => Config::load(p).map_err(|e| e.to_string())?,
         None => Config::default(),
     };
