@@ -20,6 +20,19 @@ fn replay(dir: &std::path::Path, edit: impl FnOnce(&mut Config)) -> (Vec<Estimat
     (est, sum)
 }
 
+/// A power cycle that starts with the vehicle axes turned by `axes_deg`
+/// (what a daemon restores from its state file): the run's samples through
+/// a fresh estimator with its config, `edit`ed.
+fn restarted_with_axes(dir: &std::path::Path, edit: impl FnOnce(&mut Config), axes_deg: f64) -> (Vec<Estimate>, Estimator) {
+    let mut cfg = Config::load(&dir.join("config.toml")).unwrap();
+    edit(&mut cfg);
+    let decoded = gyrocomp::reference::decode(std::fs::File::open(dir.join("imu.log")).unwrap(), &cfg, "imu.log").unwrap();
+    let mut e = Estimator::new(&cfg);
+    assert!(e.set_vehicle_axes(axes_deg));
+    let est = decoded.samples.iter().map(|s| e.step(s)).collect();
+    (est, e)
+}
+
 /// truth.csv: (t, roll, pitch, yaw) in deg, the vehicle's.
 fn truth(dir: &std::path::Path) -> Vec<[f64; 4]> {
     let text = std::fs::read_to_string(dir.join("truth.csv")).unwrap();
@@ -166,12 +179,7 @@ fn a_restart_starts_with_the_axes_the_pull_aways_found() {
     let truth = truth(&d);
     let before = sensor_frame_max_error(&first, &truth, [0.0, 0.0, 90.0], 10.0);
     // the second power cycle: the same samples, the axes restored
-    let mut cfg = Config::load(&d.join("config.toml")).unwrap();
-    unconfigured(&mut cfg);
-    let decoded = gyrocomp::reference::decode(std::fs::File::open(d.join("imu.log")).unwrap(), &cfg, "imu.log").unwrap();
-    let mut e = Estimator::new(&cfg);
-    assert!(e.set_vehicle_axes(turned));
-    let second: Vec<Estimate> = decoded.samples.iter().map(|s| e.step(s)).collect();
+    let (second, e) = restarted_with_axes(&d, unconfigured, turned);
     let after = sensor_frame_max_error(&second, &truth, [0.0, 0.0, 90.0], 10.0);
     println!("turned {turned:.1} deg; max roll / pitch from 10 s: first run {before:.2?}, restarted with the axes {after:.2?}");
     assert!(before.0.max(before.1) > 1.5, "the first run had no error to spare: {before:?}");
@@ -205,12 +213,7 @@ fn a_restart_while_driving_puts_its_speed_hypotheses_along_the_restored_axes() {
     assert!((turned + 90.0).abs() < 3.0, "the parked run's axes: {turned}");
     for seed in [1, 7] {
         let d = turned_unit(seed, true);
-        let mut cfg = Config::load(&d.join("config.toml")).unwrap();
-        unconfigured(&mut cfg);
-        let decoded = gyrocomp::reference::decode(std::fs::File::open(d.join("imu.log")).unwrap(), &cfg, "imu.log").unwrap();
-        let mut e = Estimator::new(&cfg);
-        assert!(e.set_vehicle_axes(turned));
-        let est: Vec<Estimate> = decoded.samples.iter().map(|s| e.step(s)).collect();
+        let (est, e) = restarted_with_axes(&d, unconfigured, turned);
         let (roll, pitch) = sensor_frame_max_error(&est, &truth(&d), [0.0, 0.0, 90.0], 10.0);
         let speed = e.power_on_speed().map(|p| p.speed_ms);
         println!("seed {seed}, axes {turned:.1} deg restored, powered on driving: hypothesis {speed:?} m/s, max roll / pitch from 10 s {roll:.2} / {pitch:.2}");
