@@ -86,6 +86,12 @@ impl Report {
                 "standstill {:.1} s, re-levels {}, updates refused by the gate {:.1} s (longest run {:.1} s), velocity re-acquired {} times, restarts from the prior {}\n",
                 c.rest_s, c.relevels, c.gated_s, c.refused_max_s, c.reacquired, c.restarts
             );
+            if let Some(q) = c.rest_never_found() {
+                s += &format!(
+                    "standstill never found: the quietest deviations were gyro {:.2} deg/s ([rest] gyro_dev_dps {:.2}) and specific force {:.3} g (accel_dev_g {:.3}); if the unit stood still, its noise or vibration is above them (a faster or noisier part than the ADIS16448 at 204.8 Hz needs its own [rest])\n",
+                    q.gyro_dps, q.gyro_max_dps, q.accel_g, q.accel_max_g
+                );
+            }
             s += &match self.vehicle {
                 Some(true) => "vehicle model: on (no lateral/vertical velocity at the rear axle)\n".to_string(),
                 Some(false) => {

@@ -207,6 +207,31 @@ pub struct MekfCounters {
     /// Times the vehicle constraint's axes were turned to the way the car
     /// pulls away (`forward_axis`: a unit turned about the vertical).
     pub reaxed: u64,
+    /// The rest detector's quietest moments over the run (None before a
+    /// sample): what the summary shows when no standstill was ever found.
+    pub quietest: Option<Quietest>,
+}
+
+impl MekfCounters {
+    /// No standstill found, and the detector's quietest deviations were at
+    /// or above a threshold: the summary and the status say so.
+    pub fn rest_never_found(&self) -> Option<Quietest> {
+        self.quietest.filter(|q| self.rest_s == 0.0 && (q.gyro_dps >= q.gyro_max_dps || q.accel_g >= q.accel_max_g))
+    }
+}
+
+/// The smallest RMS deviations the rest detector saw (each on its own, over
+/// the run) and its thresholds: a unit that stood still and was never found
+/// standing has its noise or vibration above them (a faster or noisier part
+/// than the thresholds' ADIS16448 at 204.8 Hz: `[rest]` needs its own).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Quietest {
+    /// Gyro, deg/s over three axes, and `[rest] gyro_dev_dps`.
+    pub gyro_dps: f64,
+    pub gyro_max_dps: f64,
+    /// Specific force, g over three axes, and `[rest] accel_dev_g`.
+    pub accel_g: f64,
+    pub accel_max_g: f64,
 }
 
 #[derive(Clone, Debug)]
@@ -641,8 +666,18 @@ impl Mekf {
         a.quasi &= at_rest || self.dwell >= self.p.dwell_s;
         a.rest &= at_rest;
         a.quiet &= rest.is_some_and(|r| r.quiet);
-        if rest.is_some() {
+        if let Some(r) = &rest {
             self.last_rest = rest;
+            let (g, a) = (r.gyro_var.sqrt() / D2R, r.accel_var.sqrt());
+            let rp = &self.p.rest;
+            let q = self.counters.quietest.get_or_insert(Quietest {
+                gyro_dps: g,
+                gyro_max_dps: rp.gyro_dev / D2R,
+                accel_g: a,
+                accel_max_g: rp.accel_dev,
+            });
+            q.gyro_dps = q.gyro_dps.min(g);
+            q.accel_g = q.accel_g.min(a);
         }
         let mut fl = 0u16;
         if dec.jerk {
