@@ -391,7 +391,7 @@ impl Estimator {
     /// The default filter's counters (None in the paper's modes).
     pub fn mekf_counters(&self) -> Option<MekfCounters> {
         match &self.filter {
-            Filter::Mekf(m) => Some(m.counters),
+            Filter::Mekf(m) => Some(m.counters()),
             Filter::Paper(_) => None,
         }
     }

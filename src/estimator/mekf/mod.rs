@@ -209,6 +209,7 @@ pub struct MekfCounters {
     pub reaxed: u64,
     /// The rest detector's quietest moments over the run (None before a
     /// sample): what the summary shows when no standstill was ever found.
+    /// Filled by `Mekf::counters`.
     pub quietest: Option<Quietest>,
 }
 
@@ -335,7 +336,10 @@ pub struct Mekf {
     pub last_learned: Option<(f64, [f64; 3])>,
     /// A learning point for the thermal slope: (temp, bias deg/s, weight s).
     pub rest_point: Option<(f64, [f64; 3], f64)>,
-    pub counters: MekfCounters,
+    pub(in crate::estimator) counters: MekfCounters,
+    /// The rest detector's smallest mean square deviations over the run
+    /// (gyro (rad/s)^2, specific force g^2; `Mekf::counters` reports them).
+    quietest_var: Option<[f64; 2]>,
     /// While scoring: the log-likelihood of every scalar measurement since
     /// the start, given this filter's prediction (`-(min(NIS, gate) + ln S) / 2`
     /// each), for comparing power-on hypotheses (`super::hypotheses`).
@@ -407,6 +411,7 @@ impl Mekf {
             last_learned: None,
             rest_point: None,
             counters: MekfCounters::default(),
+            quietest_var: None,
             scoring: false,
             log_likelihood: 0.0,
             last_step: (2, 0, 1.0),
@@ -506,6 +511,19 @@ impl Mekf {
     /// Velocity (NED, m/s).
     pub fn velocity(&self) -> [f64; 3] {
         self.v
+    }
+
+    /// The counters, with the rest detector's quietest deviations against
+    /// its thresholds.
+    pub fn counters(&self) -> MekfCounters {
+        let rp = &self.p.rest;
+        let quietest = self.quietest_var.map(|[g, a]| Quietest {
+            gyro_dps: g.sqrt() / D2R,
+            gyro_max_dps: rp.gyro_dev / D2R,
+            accel_g: a.sqrt(),
+            accel_max_g: rp.accel_dev,
+        });
+        MekfCounters { quietest, ..self.counters }
     }
 
     /// Forward speed at the rear axle, m/s.
@@ -668,16 +686,9 @@ impl Mekf {
         a.quiet &= rest.is_some_and(|r| r.quiet);
         if let Some(r) = &rest {
             self.last_rest = rest;
-            let (g, a) = (r.gyro_var.sqrt() / D2R, r.accel_var.sqrt());
-            let rp = &self.p.rest;
-            let q = self.counters.quietest.get_or_insert(Quietest {
-                gyro_dps: g,
-                gyro_max_dps: rp.gyro_dev / D2R,
-                accel_g: a,
-                accel_max_g: rp.accel_dev,
-            });
-            q.gyro_dps = q.gyro_dps.min(g);
-            q.accel_g = q.accel_g.min(a);
+            let q = self.quietest_var.get_or_insert([r.gyro_var, r.accel_var]);
+            q[0] = q[0].min(r.gyro_var);
+            q[1] = q[1].min(r.accel_var);
         }
         let mut fl = 0u16;
         if dec.jerk {
