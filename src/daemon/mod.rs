@@ -206,8 +206,8 @@ fn build_pipeline(cfg: &Config, store: Option<&Store>, carry: Option<(crate::est
     if let Some((l, axes)) = carry {
         pipe.estimator_mut().set_prior(l);
         // the turned vehicle axes mean something under the same mounting only
-        if let Some(a) = axes.filter(|a| a.mounting == cfg.mounting.rotation) {
-            pipe.estimator_mut().set_vehicle_axes(a.yaw_deg);
+        if let Some(yaw) = axes.and_then(|a| a.yaw_for(cfg.mounting.rotation)) {
+            pipe.estimator_mut().set_vehicle_axes(yaw);
         }
         return pipe;
     }
@@ -245,7 +245,7 @@ fn build_pipeline(cfg: &Config, store: Option<&Store>, carry: Option<(crate::est
 fn save_state(store: Option<&Store>, pipe: &Pipeline, mounting: [f64; 3]) {
     let (Some(store), Some(l)) = (store, pipe.estimator().learned()) else { return };
     let mut st = State::from_learned(&l, now_unix(), pipe.estimator().slope_state());
-    st.vehicle_axes = pipe.estimator().vehicle_axes_turned().map(|yaw_deg| SavedAxes { yaw_deg, mounting });
+    st.vehicle_axes = SavedAxes::of(pipe.estimator(), mounting);
     match store.save(&st) {
         Ok(()) => tracing::debug!(path = %store.path.display(), "state saved"),
         Err(e) => warn!("saving state: {e}"),
@@ -343,7 +343,7 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
                     match Config::load(&config_path) {
                         Ok(new) => {
                             let was_speed = pipe.speed_id();
-                            let axes = pipe.estimator().vehicle_axes_turned().map(|yaw_deg| SavedAxes { yaw_deg, mounting: cfg.mounting.rotation });
+                            let axes = SavedAxes::of(pipe.estimator(), cfg.mounting.rotation);
                             let carry = pipe.estimator().learned().map(|l| (l, axes));
                             let bus_changed = new.can.interface != cfg.can.interface || new.input.ids != cfg.input.ids || new.daemon.error_frames != cfg.daemon.error_frames;
                             cfg = new;

@@ -48,6 +48,18 @@ pub struct SavedAxes {
     pub mounting: [f64; 3],
 }
 
+impl SavedAxes {
+    /// The estimator's turned axes, if any, found under `mounting`.
+    pub fn of(est: &crate::estimator::Estimator, mounting: [f64; 3]) -> Option<SavedAxes> {
+        est.vehicle_axes_turned().map(|yaw_deg| SavedAxes { yaw_deg, mounting })
+    }
+
+    /// Their turn (deg) if they were found under `mounting`.
+    pub fn yaw_for(&self, mounting: [f64; 3]) -> Option<f64> {
+        (self.mounting == mounting).then_some(self.yaw_deg)
+    }
+}
+
 #[derive(Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Envelope {
@@ -70,7 +82,7 @@ impl State {
 
     /// The saved vehicle axes if they were found under `mounting`.
     pub fn axes_for(&self, mounting: [f64; 3]) -> Option<f64> {
-        self.vehicle_axes.filter(|a| a.mounting == mounting).map(|a| a.yaw_deg)
+        self.vehicle_axes.and_then(|a| a.yaw_for(mounting))
     }
 
     /// The prior for the estimator. The bias sigma grows with the age of the
