@@ -33,6 +33,35 @@ fn restarted_with_axes(dir: &std::path::Path, edit: impl FnOnce(&mut Config), ax
     (est, e)
 }
 
+/// An urban drive simulated into `parent` with the unit turned `yaw` deg
+/// about the vertical, with the car's wheel speeds or not, powered on
+/// parked or while driving.
+fn turned_urban(parent: &std::path::Path, seed: u64, yaw: f64, speed: bool, moving: bool) -> std::path::PathBuf {
+    let mut o = SimOptions::new("urban", seed);
+    o.mounting = Some([0.0, 0.0, yaw]);
+    o.speed = speed;
+    o.power_on_moving = moving;
+    let d = parent.join(format!("urban{seed}-{yaw}-{speed}-{moving}"));
+    simulate(&o, &d).unwrap();
+    d
+}
+
+/// A replay of `turned_urban` run `d` without its `[mounting]` rotation: the
+/// axes the pull-aways turned are the car's x axis in the unit's frame
+/// (-yaw, within 3 deg), and from 200 s roll and pitch in the unit's frame
+/// are within a degree. Returns the summary's text.
+fn assert_drives_along_the_pull_aways(d: &std::path::Path, seed: u64, yaw: f64, est: &[Estimate], sum: &Summary) -> String {
+    let text = sum.render();
+    let (turned, pulls) = sum.report.vehicle_axes.unwrap();
+    println!("seed {seed}, turned {yaw} deg: axes turned {turned:.1} deg after {pulls} pull-aways");
+    let off = (turned + yaw + 540.0) % 360.0 - 180.0;
+    assert!(off.abs() < 3.0, "axes turned {turned} deg for a unit turned {yaw}:\n{text}");
+    let (roll, pitch) = sensor_frame_max_error(est, &truth(d), [0.0, 0.0, yaw], 200.0);
+    println!("  max roll / pitch error from 200 s: {roll:.2} / {pitch:.2} deg");
+    assert!(roll < 1.0 && pitch < 1.0, "seed {seed}: max roll {roll:.2} pitch {pitch:.2} deg from 200 s");
+    text
+}
+
 /// truth.csv: (t, roll, pitch, yaw) in deg, the vehicle's.
 fn truth(dir: &std::path::Path) -> Vec<[f64; 4]> {
     let text = std::fs::read_to_string(dir.join("truth.csv")).unwrap();
@@ -74,26 +103,18 @@ fn sensor_frame_max_error(est: &[Estimate], truth: &[[f64; 4]], mounting: [f64; 
 fn a_unit_turned_in_its_car_without_its_mounting_drives_along_the_pull_aways() {
     let t = tempfile::tempdir().unwrap();
     for (seed, yaw) in [(4u64, 90.0), (2, -60.0)] {
-        let mut o = SimOptions::new("urban", seed);
-        o.mounting = Some([0.0, 0.0, yaw]);
-        let d = t.path().join(format!("run{seed}"));
-        simulate(&o, &d).unwrap();
+        let d = turned_urban(t.path(), seed, yaw, false, false);
         let (est, sum) = replay(&d, |c| {
             c.mounting.rotation = [0.0; 3];
             c.mounting.lever_arm = [0.0; 3];
         });
-        let text = sum.render();
-        println!("seed {seed}, turned {yaw} deg:\n{text}");
+        let text = assert_drives_along_the_pull_aways(&d, seed, yaw, &est, &sum);
+        println!("{text}");
         let mekf = sum.report.mekf.unwrap();
         assert_eq!(mekf.reaxed, 1, "{text}");
         let (turned, pulls) = sum.report.vehicle_axes.unwrap();
-        // the axes are the car's x axis in the unit's frame: -yaw
-        assert!((turned + yaw).abs() < 3.0, "axes turned {turned} deg for a unit turned {yaw}:\n{text}");
         assert!(pulls >= 2, "{pulls} pull-aways");
         assert!(text.contains(&format!("[mounting] rotation yaw {:.1}", -turned)), "{text}");
-        let (roll, pitch) = sensor_frame_max_error(&est, &truth(&d), [0.0, 0.0, yaw], 200.0);
-        println!("  max roll / pitch error from 200 s: {roll:.2} / {pitch:.2} deg");
-        assert!(roll < 1.0 && pitch < 1.0, "seed {seed}: max roll {roll:.2} pitch {pitch:.2} deg from 200 s");
     }
 }
 
@@ -110,20 +131,9 @@ fn a_unit_turned_in_its_car_without_its_mounting_drives_along_the_pull_aways() {
 fn with_wheel_speeds_a_unit_turned_or_backwards_turns_its_axes_to_the_pull_aways() {
     let t = tempfile::tempdir().unwrap();
     for (seed, yaw) in [(4u64, 90.0), (1, 180.0)] {
-        let mut o = SimOptions::new("urban", seed);
-        o.mounting = Some([0.0, 0.0, yaw]);
-        o.speed = true;
-        let d = t.path().join(format!("run{seed}"));
-        simulate(&o, &d).unwrap();
+        let d = turned_urban(t.path(), seed, yaw, true, false);
         let (est, sum) = replay(&d, |c| c.mounting.rotation = [0.0; 3]);
-        let text = sum.render();
-        let (turned, pulls) = sum.report.vehicle_axes.unwrap();
-        let off = (turned + yaw + 540.0) % 360.0 - 180.0;
-        println!("seed {seed}, turned {yaw} deg, wheel speeds: axes turned {turned:.1} deg after {pulls} pull-aways");
-        assert!(off.abs() < 3.0, "axes turned {turned} deg for a unit turned {yaw}:\n{text}");
-        let (roll, pitch) = sensor_frame_max_error(&est, &truth(&d), [0.0, 0.0, yaw], 200.0);
-        println!("  max roll / pitch error from 200 s: {roll:.2} / {pitch:.2} deg");
-        assert!(roll < 1.0 && pitch < 1.0, "seed {seed}: max roll {roll:.2} pitch {pitch:.2} deg from 200 s");
+        assert_drives_along_the_pull_aways(&d, seed, yaw, &est, &sum);
     }
 }
 
@@ -166,10 +176,7 @@ fn a_unit_mounted_as_configured_keeps_its_axes() {
 #[test]
 fn a_restart_starts_with_the_axes_the_pull_aways_found() {
     let t = tempfile::tempdir().unwrap();
-    let mut o = SimOptions::new("urban", 4);
-    o.mounting = Some([0.0, 0.0, 90.0]);
-    let d = t.path().join("run");
-    simulate(&o, &d).unwrap();
+    let d = turned_urban(t.path(), 4, 90.0, false, false);
     let unconfigured = |c: &mut Config| {
         c.mounting.rotation = [0.0; 3];
         c.mounting.lever_arm = [0.0; 3];
@@ -199,20 +206,12 @@ fn a_restart_starts_with_the_axes_the_pull_aways_found() {
 #[test]
 fn a_restart_while_driving_puts_its_speed_hypotheses_along_the_restored_axes() {
     let t = tempfile::tempdir().unwrap();
-    let turned_unit = |seed: u64, moving: bool| {
-        let mut o = SimOptions::new("urban", seed);
-        o.mounting = Some([0.0, 0.0, 90.0]);
-        o.power_on_moving = moving;
-        let d = t.path().join(format!("run{seed}{moving}"));
-        simulate(&o, &d).unwrap();
-        d
-    };
     let unconfigured = |c: &mut Config| c.mounting.rotation = [0.0; 3];
-    let (_, sum) = replay(&turned_unit(4, false), unconfigured);
+    let (_, sum) = replay(&turned_urban(t.path(), 4, 90.0, false, false), unconfigured);
     let (turned, _) = sum.report.vehicle_axes.unwrap();
     assert!((turned + 90.0).abs() < 3.0, "the parked run's axes: {turned}");
     for seed in [1, 7] {
-        let d = turned_unit(seed, true);
+        let d = turned_urban(t.path(), seed, 90.0, false, true);
         let (est, e) = restarted_with_axes(&d, unconfigured, turned);
         let (roll, pitch) = sensor_frame_max_error(&est, &truth(&d), [0.0, 0.0, 90.0], 10.0);
         let speed = e.power_on_speed().map(|p| p.speed_ms);
