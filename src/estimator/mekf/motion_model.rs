@@ -8,7 +8,7 @@ impl Mekf {
     /// `vehicle = "auto"`, once per sample while the vehicle model is in
     /// use: the body rates (rad/s, raw) and specific force (g) decide.
     pub(super) fn watch_vehicle_model(&mut self, gyro: &[f64; 3], accel: &[f64; 3]) {
-        if !(self.vehicle && self.p.vehicle == Vehicle::Auto && !self.p.speed_aided) {
+        if !self.may_leave_vehicle_model() {
             return;
         }
         // decided on the measurements, never on the filter's own
@@ -31,6 +31,12 @@ impl Mekf {
         if self.xy_rate2 > self.p.handheld_rate * self.p.handheld_rate || !upright {
             self.leave_vehicle_model();
         }
+    }
+
+    /// The vehicle model is in use and `"auto"` may still leave it (IMU only:
+    /// with the car's own speed it is a vehicle).
+    fn may_leave_vehicle_model(&self) -> bool {
+        self.vehicle && self.p.vehicle == Vehicle::Auto && !self.p.speed_aided
     }
 
     /// The unit is not in a vehicle after all. Before a standstill has read
@@ -71,7 +77,7 @@ impl Mekf {
     /// not in a vehicle (the power-on bank keeps it, `hypotheses.rs`).
     /// None when the vehicle model is configured or the speed measured.
     pub fn free_unit_copy(&self) -> Option<Mekf> {
-        if !(self.vehicle && self.p.vehicle == Vehicle::Auto && !self.p.speed_aided) {
+        if !self.may_leave_vehicle_model() {
             return None;
         }
         // as `vehicle = false` starts: zero velocity, `init_speed_sigma`
