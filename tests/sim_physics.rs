@@ -115,3 +115,43 @@ fn chamber_self_heats_at_rest() {
         assert!((m - 1.0).abs() < 1e-12);
     }
 }
+
+/// The planar scenarios' road (camber, grades, the sway they excite) lies
+/// along the road, not along the clock: a parked car is still, and a car on
+/// a grade climbs it. Before, the sines ran on time: a parked car turned at
+/// 1.0 deg/s (seed 1; its first standstill read that as bias), and the body
+/// pitched with the grade while its velocity stayed level (seed 1: 3.1 deg
+/// off its own path, 1.1 m/s across its floor at 20 m/s, which no car does).
+#[test]
+fn a_parked_car_is_still_and_a_driving_car_climbs_its_grades() {
+    for seed in 1..6 {
+        let tr = truth("vehicle", false, seed, 340.0);
+        // parked (engine on) until the pull-away at 3 s
+        for x in tr.iter().filter(|x| x.t < 2.9) {
+            assert_eq!(x.speed, 0.0, "seed {seed}: moving at {}", x.t);
+            let r = x.rate.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(r < 1e-9, "seed {seed}: a parked car turns at {r} deg/s at {:.2} s", x.t);
+        }
+        // driving: the body's pitch off its path is its mounting and parking
+        // offset (under 1 deg), the squat of a gentle acceleration (4 deg/g x
+        // 0.08 g) and a bump's pitch pulse (0.5 deg); never the grade
+        let (mut worst, mut grade, mut climb) = (0.0f64, 0.0f64, 0.0f64);
+        let (mut alt, mut lo, mut hi) = (0.0, 0.0f64, 0.0f64);
+        for w in tr.windows(2) {
+            let x = &w[1];
+            alt -= 0.5 * (w[0].vel[2] + x.vel[2]) / RATE;
+            (lo, hi) = (lo.min(alt), hi.max(alt));
+            grade = grade.max(x.grade.abs());
+            if x.speed < 5.0 {
+                continue;
+            }
+            let c = c_nb(x.roll.to_radians(), x.pitch.to_radians(), x.yaw.to_radians());
+            let vb = gyrocomp::sim::motion::to_body(&c, &x.vel);
+            worst = worst.max(vb[2].atan2(vb[0]).to_degrees().abs());
+            climb = climb.max((-x.vel[2] / x.speed).asin().to_degrees().abs());
+        }
+        assert!(worst < 2.0, "seed {seed}: the body is {worst} deg off its path");
+        assert!(grade > 1.0 && climb > 1.0, "seed {seed}: grades up to {grade} deg, climbed at up to {climb} deg");
+        assert!(hi - lo > 10.0, "seed {seed}: the road rose and fell by {} m only", hi - lo);
+    }
+}

@@ -103,6 +103,22 @@ fn sum_sines(s: &[Sine], t: f64) -> (f64, f64) {
     })
 }
 
+/// The speed (m/s) at which a road sine's period is the time it takes to
+/// drive it: its wavelength is `SINE_SPEED / freq` (at 15 m/s, in the middle
+/// of the planar scenarios' 8-22 m/s, a sine of 40 s is a 600-m grade).
+pub const SINE_SPEED: f64 = 15.0;
+
+/// The body's tilt and the road's grade (`TruthGen::tilt`), rad and rad/s.
+#[derive(Clone, Copy, Debug)]
+struct Tilt {
+    roll: f64,
+    pitch: f64,
+    droll: f64,
+    dpitch: f64,
+    grade: f64,
+    dgrade: f64,
+}
+
 /// A road bump: vertical acceleration `accel sin(2 pi (t - t0) / dur)` (m/s^2
 /// given in g) over one period (no net vertical velocity), with a pitch pulse
 /// `pitch (1 - cos(2 pi s)) / 2`.
@@ -207,9 +223,9 @@ pub struct Truth {
     pub a_long: f64,
     /// Lateral (centripetal) acceleration `v * yaw rate` of the vehicle, g.
     pub a_lat: f64,
-    /// Distance travelled along the road, m (road kinematics; 0 otherwise).
+    /// Distance travelled along the road, m (0 for the scenarios at rest).
     pub dist: f64,
-    /// Road grade, deg (positive uphill; road kinematics; 0 otherwise).
+    /// Road grade, deg (positive uphill; 0 for the scenarios at rest).
     pub grade: f64,
 }
 
@@ -292,11 +308,23 @@ impl<'a> TruthGen<'a> {
         G * self.spec.a_long.eval(t).0
     }
 
-    /// Roll and pitch (rad) and their derivatives (rad/s) at `t`.
-    fn tilt(&self, t: f64) -> (f64, f64, f64, f64) {
+    /// Roll and pitch (rad) and their rates (rad/s) at `t`, a distance
+    /// `dist` (m) along the road at speed `v` (m/s), and the road's grade
+    /// (rad, uphill positive) and its rate.
+    ///
+    /// The road's camber and grade, and the sway they excite, lie along the
+    /// road: the sines are functions of the distance travelled, their
+    /// periods the time it takes to drive them at [`SINE_SPEED`]. A parked
+    /// car is still; the faster it drives, the faster they come. The pitch
+    /// sines are the grade, which the car climbs (its velocity follows it:
+    /// `truth_now`).
+    fn tilt(&self, t: f64, dist: f64, v: f64) -> Tilt {
         let s = self.spec;
-        let (rs, drs) = sum_sines(&s.roll_sines, t);
-        let (ps, dps) = sum_sines(&s.pitch_sines, t);
+        let x = dist / SINE_SPEED;
+        let xr = v / SINE_SPEED;
+        let (rs, drs) = sum_sines(&s.roll_sines, x);
+        let (ps, dps) = sum_sines(&s.pitch_sines, x);
+        let (drs, dps) = (drs * xr, dps * xr);
         let (al, dal) = s.a_lat.eval(t);
         let (ag, dag) = s.a_long.eval(t);
         let (mut bp, mut dbp) = (0.0, 0.0);
@@ -311,7 +339,7 @@ impl<'a> TruthGen<'a> {
         let droll = drs + s.roll_per_lat * dal;
         let pitch = s.pitch0 + ps + s.pitch_per_long * ag + bp;
         let dpitch = dps + s.pitch_per_long * dag + dbp;
-        (roll * D2R, pitch * D2R, droll * D2R, dpitch * D2R)
+        Tilt { roll: roll * D2R, pitch: pitch * D2R, droll: droll * D2R, dpitch: dpitch * D2R, grade: ps * D2R, dgrade: dps * D2R }
     }
 
     /// Vertical (down) acceleration m/s^2 and velocity m/s from the bumps.
@@ -333,8 +361,8 @@ impl<'a> TruthGen<'a> {
         if let Some(road) = &self.spec.road {
             return road.truth(self.spec, t, self.v, self.psi, self.dist);
         }
-        let (roll, pitch, droll, dpitch) = self.tilt(t);
         let v = self.v;
+        let Tilt { roll, pitch, droll, dpitch, grade, dgrade } = self.tilt(t, self.dist, v);
         let psi = self.psi;
         let dpsi = self.psi_dot(t, v);
         // body rates = E^-1 [roll', pitch', yaw']
@@ -346,8 +374,12 @@ impl<'a> TruthGen<'a> {
         let (sp, cp) = psi.sin_cos();
         let vdot = if v > 0.0 || self.vdot(t) > 0.0 { self.vdot(t) } else { 0.0 };
         let (az, vz) = self.vertical(t);
-        let acc = [vdot * cp - v * dpsi * sp, vdot * sp + v * dpsi * cp, az];
-        let vel = [v * cp, v * sp, vz];
+        // along the road: horizontally v cos(grade), climbing v sin(grade)
+        let (sg, cg) = grade.sin_cos();
+        let vh = v * cg;
+        let dvh = vdot * cg - v * sg * dgrade;
+        let acc = [dvh * cp - vh * dpsi * sp, dvh * sp + vh * dpsi * cp, az - vdot * sg - v * cg * dgrade];
+        let vel = [vh * cp, vh * sp, vz - v * sg];
         let c = c_nb(roll, pitch, psi);
         let f = to_body(&c, &[acc[0] / G, acc[1] / G, acc[2] / G - 1.0]);
         let (temp, temp_rate) = self.spec.thermal.eval(t);
@@ -365,8 +397,8 @@ impl<'a> TruthGen<'a> {
             speed: v,
             a_long: vdot / G,
             a_lat: v * dpsi / G,
-            dist: 0.0,
-            grade: 0.0,
+            dist: self.dist,
+            grade: grade * R2D,
         }
     }
 
@@ -392,6 +424,7 @@ impl<'a> TruthGen<'a> {
             let k4 = f(t + h, v + h * k3.0);
             self.v = (v + h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0)).max(0.0);
             self.psi = psi + h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1);
+            self.dist += 0.5 * (v + self.v) * h;
             t += h;
         }
         self.k += 1;
