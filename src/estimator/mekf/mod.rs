@@ -111,6 +111,18 @@ const GAP_TURN_RATE: f64 = 30.0 * D2R;
 const GAP_VEHICLE_TILT: f64 = 5.0 * D2R;
 const GAP_SPEED_VAR: f64 = 4.0;
 const GAP_ACCEL: f64 = 3.0;
+/// A still period whose specific force lies this far (g) off gravity, along
+/// the centripetal acceleration of the filter's own motion, is a turn, not a
+/// standstill (`turning_at_speed`): 1.1 deg of tilt, above a rest's tilt
+/// noise.
+const TURNING_AT_SPEED_G: f64 = 0.02;
+/// A car whose magnetic field turns by more than this (deg) in its own frame
+/// since the rest detector's conditions began to hold is turning, not
+/// standing (`field_turned`): under a 60-deg dip a 3-deg turn of the car
+/// (its horizontal half turns), 2 s of a 1.5-deg/s turn, within the 2.5 s
+/// to a re-level. The simulated magnetometer (0.5 mgauss per sample) keeps
+/// a tick's mean field steady to 0.03 deg.
+const FIELD_TURN_DEG: f64 = 1.5;
 /// 1-sigma of the vertical-speed bound (`max_vertical_speed`), m/s.
 const VERTICAL_BOUND_SIGMA: f64 = 0.5;
 /// A car's body cannot keep rolling or pitching (`level_rate_update`): its
@@ -290,6 +302,9 @@ pub struct Mekf {
     refused_still: f64,
     /// Seconds the wheels have read standing.
     wheel_standing_s: f64,
+    /// The magnetic field (body frame, mean of a tick) when the rest
+    /// detector's conditions began to hold (`field_turned`).
+    quiet_field: Option<[f64; 3]>,
     nhc_refused: f64,
     /// Seconds the free unit's low-passed gravity has been refused without a break.
     gravity_refused: f64,
@@ -383,6 +398,7 @@ impl Mekf {
             mag_dist_s: 0.0,
             refused_still: 0.0,
             wheel_standing_s: 0.0,
+            quiet_field: None,
             nhc_refused: 0.0,
             gravity_refused: 0.0,
             gravity_held: 0.0,
