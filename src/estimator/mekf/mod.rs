@@ -133,6 +133,8 @@ const VERTICAL_BOUND_SIGMA: f64 = 0.5;
 const LEVEL_WINDOW_S: f64 = 3.0;
 const LEVEL_RATE_SIGMA: f64 = 1.0 * D2R;
 const LEVEL_TURN_MAX: f64 = 3.0 * D2R;
+/// A car's roll, per level window, is zero within this (`level_roll_update`).
+const LEVEL_ROLL_SIGMA: f64 = 3.0 * D2R;
 
 /// What a scalar update did.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -46,6 +46,19 @@ fn measurement_rows_match_finite_differences() {
                 assert!((fd - h[k]).abs() < 1e-4 * (1.0 + h[k].abs()), "yaw {yaw} velocity axis {axis} state {k}: {fd} vs {}", h[k]);
             }
         }
+        // the car's roll (`level_roll_update`), along its turned axes too
+        if vehicle {
+            let (r0, h) = m.car_roll_row().unwrap();
+            for k in 0..N {
+                let (r1, _) = perturbed(&m, k, eps).car_roll_row().unwrap();
+                let fd = (r1 - r0) / eps;
+                assert!((fd - h[k]).abs() < 1e-4 * (1.0 + h[k].abs()), "yaw {yaw} car roll state {k}: {fd} vs {}", h[k]);
+            }
+            let e = quat::euler(&m.c);
+            if yaw == 0.0 {
+                assert!((r0 - e[0]).abs() < 1e-9, "the car's roll {r0} is the unit's {} with its axes", e[0]);
+            }
+        }
         // a car driving along its (turned) x axis, not turning: the lateral
         // and vertical rows read zero, the forward one its speed
         if vehicle {
