@@ -146,10 +146,11 @@ fn default_holds_attitude_in_city_driving() {
     assert!(paper.tilt_max() > 5.0 * m.tilt_max(), "paper {} vs {}", paper.tilt_max(), m.tilt_max());
 }
 
-/// The default filter on urban `seed` powered on while driving, IMU only,
-/// no saved state, scored from `from_s`.
-fn urban_powered_on_while_driving(seed: u64, from_s: f64) -> Metrics {
-    let mut o = SimOptions::new("urban", seed);
+/// The default filter on `scenario` `seed` powered on while driving (the
+/// unit's own calibration and mounting, no saved state), scored from each
+/// of `from_s`.
+fn powered_on_while_driving(scenario: &str, seed: u64, from_s: &[f64]) -> Vec<Metrics> {
+    let mut o = SimOptions::new(scenario, seed);
     o.power_on_moving = true;
     let data = RunData::simulate(&o).unwrap();
     let mut c = Config::default();
@@ -157,7 +158,13 @@ fn urban_powered_on_while_driving(seed: u64, from_s: f64) -> Metrics {
     c.thermal = u.thermal.clone();
     c.mounting = u.mounting.clone();
     let (est, ms) = data.estimates(&c).unwrap();
-    score("x", &data, &est, ms, from_s)
+    from_s.iter().map(|&f| score("x", &data, &est, ms, f)).collect()
+}
+
+/// The default filter on urban `seed` powered on while driving, IMU only,
+/// no saved state, scored from `from_s`.
+fn urban_powered_on_while_driving(seed: u64, from_s: f64) -> Metrics {
+    powered_on_while_driving("urban", seed, &[from_s]).remove(0)
 }
 
 /// Powered on while driving, IMU only, no saved state (a daemon's first start
@@ -207,16 +214,8 @@ fn default_powered_on_while_driving_meets_the_urban_target_from_10_s() {
 /// manoeuvres.
 #[test]
 fn a_car_that_never_stops_takes_no_steady_turn_for_a_standstill() {
-    let mut o = SimOptions::new("vehicle", 18);
-    o.power_on_moving = true;
-    let data = RunData::simulate(&o).unwrap();
-    let mut c = Config::default();
-    let u = data.unit_config.as_ref().unwrap();
-    c.thermal = u.thermal.clone();
-    c.mounting = u.mounting.clone();
-    let (est, ms) = data.estimates(&c).unwrap();
-    let all = score("x", &data, &est, ms, 10.0);
-    let man = score("x", &data, &est, ms, 350.0);
+    let m = powered_on_while_driving("vehicle", 18, &[10.0, 350.0]);
+    let (all, man) = (&m[0], &m[1]);
     println!("from 10 s {:?}, from 350 s {:?}", all.max_err, man.max_err);
     assert!(all.max_err[0] <= 3.0 && all.max_err[1] <= 3.0, "max roll/pitch from 10 s {:?}", all.max_err);
     assert!(man.max_err[0] <= 2.0 && man.max_err[1] <= 2.0, "max roll/pitch in the manoeuvres {:?}", man.max_err);
