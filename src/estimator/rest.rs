@@ -28,6 +28,10 @@
 //! thresholds: after a hard 40 deg/s swing the rest is found 3.1 s after
 //! its end (the low-passes settling, then `min_s`), not 4.8 s.
 //!
+//! A part sampled faster than about 300 Hz is averaged in blocks down to
+//! about 204.8 Hz first (`BLOCK_HZ`): the deviations then measure the same
+//! bandwidth on every part.
+//!
 //! No allocation, O(1) per sample.
 
 /// Without a measured gravity reference (powered on while moving: g0 then
@@ -43,6 +47,15 @@ pub const UNANCHORED_BAND: f64 = 0.03;
 /// `gyro_dev_dps` (`tau_s` ln 2,200); from 4 times the threshold it takes
 /// `tau_s` ln 4 = 0.7 s once the deviations have ended.
 pub const DEV_MEMORY: f64 = 4.0;
+
+/// A part sampled faster than this is averaged in blocks down to about this
+/// rate before the detector (Hz; the ADIS16448's 204.8 rounds to blocks of
+/// one, and so do the 286-Hz and 104-Hz recordings). White noise's RMS
+/// grows with the square root of the bandwidth: the simulator's ADIS16448
+/// noise density at 2 kHz is 0.74 deg/s over three axes sample by sample,
+/// over `[rest] gyro_dev_dps` 0.6, and no standstill was ever found; in
+/// blocks of ten it is 0.24, as at 204.8 Hz.
+pub const BLOCK_HZ: f64 = 204.8;
 
 /// Thresholds of the detector (`[rest]` in the config).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -88,6 +101,15 @@ pub struct RestDetector {
     /// The low-pass gain for the step length `alpha_dt`.
     alpha_dt: f64,
     alpha: f64,
+    /// Samples averaged into one detector step (`BLOCK_HZ`), for the step
+    /// length `block_dt`; the sums and count of the block being filled;
+    /// what the last full block said.
+    block: u32,
+    block_dt: f64,
+    sum_gyro: [f64; 3],
+    sum_accel: [f64; 3],
+    filled: u32,
+    last: Option<RestState>,
 }
 
 /// What the detector says after one sample.
@@ -124,6 +146,12 @@ impl RestDetector {
             anchor: [0.0; 3],
             alpha_dt: -1.0,
             alpha: 0.0,
+            block: 1,
+            block_dt: -1.0,
+            sum_gyro: [0.0; 3],
+            sum_accel: [0.0; 3],
+            filled: 0,
+            last: None,
         }
     }
 
@@ -131,6 +159,8 @@ impl RestDetector {
     pub fn reset(&mut self) {
         self.started = false;
         self.held = 0.0;
+        self.filled = 0;
+        self.last = None;
     }
 
     /// Seconds the rest conditions have held.
@@ -141,6 +171,12 @@ impl RestDetector {
     /// One sample: gyro, specific force (g), time step (s), gravity's size as
     /// this unit measures it (g; None: not measured yet), the current bias
     /// estimate and its 1-sigma per axis (gyro unit).
+    ///
+    /// A part sampled faster than `BLOCK_HZ` is averaged in blocks down to
+    /// about that rate first (the state returned between blocks is the last
+    /// block's): the deviations then measure the same bandwidth on every
+    /// part, and `[rest]`'s thresholds mean the same on a 2-kHz part as on a
+    /// 204.8-Hz one.
     pub fn push(
         &mut self,
         gyro: &[f64; 3],
@@ -150,6 +186,38 @@ impl RestDetector {
         bias: &[f64; 3],
         bias_sigma: [f64; 3],
     ) -> RestState {
+        if dt != self.block_dt {
+            self.block_dt = dt;
+            self.block = ((1.0 / (dt * BLOCK_HZ)).round() as u32).max(1);
+            self.filled = 0;
+        }
+        // the first sample (and the first after a reset) on its own
+        let Some(last) = self.last.filter(|_| self.block > 1) else {
+            let st = self.step(gyro, accel, dt, g_ref, bias, bias_sigma);
+            if self.block > 1 {
+                self.last = Some(st);
+                self.filled = 0;
+            }
+            return st;
+        };
+        for k in 0..3 {
+            self.sum_gyro[k] = if self.filled == 0 { gyro[k] } else { self.sum_gyro[k] + gyro[k] };
+            self.sum_accel[k] = if self.filled == 0 { accel[k] } else { self.sum_accel[k] + accel[k] };
+        }
+        self.filled += 1;
+        if self.filled < self.block {
+            return last;
+        }
+        let n = self.filled as f64;
+        let (g, a) = (self.sum_gyro.map(|v| v / n), self.sum_accel.map(|v| v / n));
+        let st = self.step(&g, &a, dt * n, g_ref, bias, bias_sigma);
+        self.filled = 0;
+        self.last = Some(st);
+        st
+    }
+
+    /// One detector step on one (block-averaged) sample of length `dt`.
+    fn step(&mut self, gyro: &[f64; 3], accel: &[f64; 3], dt: f64, g_ref: Option<f64>, bias: &[f64; 3], bias_sigma: [f64; 3]) -> RestState {
         if !self.started {
             self.gyro_lp = *gyro;
             self.accel_lp = *accel;
@@ -276,6 +344,60 @@ mod tests {
     fn noise(k: u64) -> f64 {
         let x = (k.wrapping_mul(0x9E3779B97F4A7C15) >> 11) as f64 / (1u64 << 53) as f64;
         2.0 * x - 1.0
+    }
+
+    /// Seconds until rest is declared for a unit lying still, sampled at
+    /// `rate_hz` with the ADIS16448's white noise density (0.0135
+    /// deg/s/sqrt(Hz) per axis; uniform noise of that RMS), `[rest]` at its
+    /// defaults; None within 10 s.
+    fn still_unit_at(rate_hz: f64) -> Option<f64> {
+        let d2r = std::f64::consts::PI / 180.0;
+        let p = RestParams::from_config(&crate::config::RestConfig::default());
+        let mut d = RestDetector::new(p);
+        let dt = 1.0 / rate_hz;
+        // uniform in [-a, a] has RMS a / sqrt(3)
+        let a = 0.0135 * (rate_hz / 2.0).sqrt() * 3f64.sqrt() * d2r;
+        let fa = 0.00023 * (rate_hz / 2.0).sqrt() * 3f64.sqrt();
+        for k in 0..(10.0 * rate_hz) as u64 {
+            let g = [a * noise(6 * k), a * noise(6 * k + 1), a * noise(6 * k + 2)];
+            let f = [fa * noise(6 * k + 3), fa * noise(6 * k + 4), -1.0 + fa * noise(6 * k + 5)];
+            if d.push(&g, &f, dt, Some(1.0), &[0.0; 3], [1e-3; 3]).rest {
+                return Some(k as f64 * dt);
+            }
+        }
+        None
+    }
+
+    #[test]
+    fn a_still_unit_rests_at_any_sample_rate() {
+        // sample by sample the gyro's RMS deviation grows with the rate: at
+        // 2 kHz 0.74 deg/s over three axes, over `gyro_dev_dps` 0.6; averaged
+        // in blocks down to about 204.8 Hz it is what a 204.8-Hz part sees
+        for hz in [104.0, 204.8, 286.0, 819.2, 2000.0] {
+            let t = still_unit_at(hz);
+            println!("{hz} Hz: rest after {t:?} s");
+            let t = t.unwrap_or_else(|| panic!("a still unit sampled at {hz} Hz never rests"));
+            assert!(t < 3.0, "{hz} Hz: rest only after {t} s");
+        }
+    }
+
+    #[test]
+    fn blocks_are_only_for_fast_parts_and_keep_the_state_between() {
+        let p = RestParams::from_config(&crate::config::RestConfig::default());
+        for (hz, block) in [(104.0, 1), (204.8, 1), (286.0, 1), (819.2, 4), (2000.0, 10)] {
+            let mut d = RestDetector::new(p);
+            let a = d.push(&[0.0; 3], &[0.0, 0.0, -1.0], 1.0 / hz, Some(1.0), &[0.0; 3], [1e-3; 3]);
+            assert_eq!(d.block, block, "{hz} Hz");
+            // between blocks the last block's state, exactly
+            if block > 1 {
+                for _ in 0..block - 1 {
+                    let b = d.push(&[0.1, 0.0, 0.0], &[0.0, 0.0, -1.0], 1.0 / hz, Some(1.0), &[0.0; 3], [1e-3; 3]);
+                    assert_eq!(a, b);
+                }
+                let c = d.push(&[0.1, 0.0, 0.0], &[0.0, 0.0, -1.0], 1.0 / hz, Some(1.0), &[0.0; 3], [1e-3; 3]);
+                assert!(c.gyro_lp[0] > 0.0, "the block's mean was not stepped: {c:?}");
+            }
+        }
     }
 
     /// The first time rest is declared after `swing_s` of a hand's hard

@@ -237,8 +237,9 @@ impl MekfCounters {
 
 /// The smallest RMS deviations the rest detector saw (each on its own, over
 /// the run) and its thresholds: a unit that stood still and was never found
-/// standing has its noise or vibration above them (a faster or noisier part
-/// than the thresholds' ADIS16448 at 204.8 Hz: `[rest]` needs its own).
+/// standing has its noise or vibration above them (a noisier part than the
+/// thresholds' ADIS16448, seen in blocks of about 204.8 Hz: `[rest]` needs
+/// its own).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Quietest {
     /// Gyro, deg/s over three axes, and `[rest] gyro_dev_dps`.
