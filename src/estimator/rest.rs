@@ -48,9 +48,10 @@ pub const UNANCHORED_BAND: f64 = 0.03;
 /// `tau_s` ln 4 = 0.7 s once the deviations have ended.
 pub const DEV_MEMORY: f64 = 4.0;
 
-/// A part sampled faster than this is averaged in blocks down to about this
-/// rate before the detector (Hz; the ADIS16448's 204.8 rounds to blocks of
-/// one, and so do the 286-Hz and 104-Hz recordings). White noise's RMS
+/// The detector's rate, Hz: the samples are averaged in blocks of
+/// `round(rate / BLOCK_HZ)` (at least one) before it, so a part sampled
+/// faster than about 300 Hz is seen at about this rate (the ADIS16448's
+/// 204.8 Hz, the 286-Hz and the 104-Hz recordings: blocks of one). White noise's RMS
 /// grows with the square root of the bandwidth: the simulator's ADIS16448
 /// noise density at 2 kHz is 0.74 deg/s over three axes sample by sample,
 /// over `[rest] gyro_dev_dps` 0.6, and no standstill was ever found; in

@@ -232,9 +232,6 @@ impl Mekf {
         self.tick_flags = fl;
     }
 
-    /// The updates of a still unit: the gyro reads the bias (zero-rate
-    /// update), the specific force is gravity, and at a standstill (not a
-    /// smooth cruise) the velocity is zero. Noise from the rest detector.
     /// A still period that is a car in a steady, gentle turn: its |f| is
     /// within the rest band of gravity (0.08 g lateral is 0.3 % on |f|) and
     /// every signal is steady; before a standstill has read the bias the
@@ -299,6 +296,9 @@ impl Mekf {
         cos.acos() > FIELD_TURN_DEG * D2R
     }
 
+    /// The updates of a still unit: the gyro reads the bias (zero-rate
+    /// update), the specific force is gravity, and at a standstill (not a
+    /// smooth cruise) the velocity is zero. Noise from the rest detector.
     fn still_updates(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome) {
         let n = a.n as f64;
         let gate = self.p.gate;
