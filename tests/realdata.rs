@@ -61,9 +61,18 @@ fn one_recording(name: &str) -> Option<PathBuf> {
 /// Ours and VQF on the recording `rec` powered on `at` s into it
 /// (`--power-on-at`), the built-in defaults.
 fn powered_on_at(rec: &std::path::Path, at: f64) -> (gyrocomp::reference::score::Scores, gyrocomp::reference::score::Scores) {
+    powered_on_at_with(rec, &gyrocomp::config::Config::default(), at)
+}
+
+/// The same with the config `cfg`.
+fn powered_on_at_with(
+    rec: &std::path::Path,
+    cfg: &gyrocomp::config::Config,
+    at: f64,
+) -> (gyrocomp::reference::score::Scores, gyrocomp::reference::score::Scores) {
     use gyrocomp::reference::RefOptions;
     let o = RefOptions { power_on_at: Some(at), ..RefOptions::default() };
-    let mut r = gyrocomp::reference::realdata::evaluate_recording(rec, &gyrocomp::config::Config::default(), &o).unwrap();
+    let mut r = gyrocomp::reference::realdata::evaluate_recording(rec, cfg, &o).unwrap();
     let vqf = r.eval.results.pop().unwrap().scores;
     (r.eval.results.pop().unwrap().scores, vqf)
 }
@@ -536,17 +545,11 @@ fn the_car_restarted_while_driving_does_not_diverge() {
 /// magnetometer finds 3.9; VQF 1.56), and none diverges.
 #[test]
 fn the_car_without_its_magnetometer_keeps_its_roll() {
-    use gyrocomp::config::Config;
-    use gyrocomp::reference::realdata::evaluate_recording;
-    use gyrocomp::reference::RefOptions;
     let Some(rec) = one_recording("comma2k19-rav4-60s") else { return };
-    let cfg = Config::parse("[estimator]\nuse_magnetometer = false\n", "test").unwrap();
+    let cfg = gyrocomp::config::Config::parse("[estimator]\nuse_magnetometer = false\n", "test").unwrap();
     let (mut ours_sum, mut vqf_sum) = (0.0, 0.0);
     for at in [0.0, 10.0, 20.0, 30.0, 40.0] {
-        let o = RefOptions { power_on_at: Some(at), ..RefOptions::default() };
-        let mut r = evaluate_recording(&rec, &cfg, &o).unwrap();
-        let vqf = r.eval.results.pop().unwrap().scores;
-        let ours = r.eval.results.pop().unwrap().scores;
+        let (ours, vqf) = powered_on_at_with(&rec, &cfg, at);
         println!("no magnetometer, powered on at {at} s: {}", ours_and_vqf(&ours, &vqf));
         assert_not_diverged(&ours, &format!("no magnetometer, at {at} s"));
         ours_sum += ours.roll.rms;
