@@ -470,6 +470,30 @@ fn mekf_powered_on_at_speed_finds_the_speed_at_the_first_turns() {
 }
 
 #[test]
+fn mekf_a_speed_hypothesis_running_backwards_is_never_published() {
+    // Powered on at 13 m/s, IMU only: the bank runs. The published filter's
+    // forward speed is set to -10 m/s, as a pitch error integrated into the
+    // speed leaves it (the comma2k19 car powered on 5 s into its drive: -20
+    // m/s, pitch 13 deg off). No car powered on while driving reverses that
+    // fast: on the next sample the likeliest plausible hypothesis is
+    // published, without the usual lead. Without the rule the -10 m/s
+    // filter stays published: one sample gives no alternative a lead.
+    let mut m = Motion::new(204.8, [0.5, -0.5, 0.5], 0.0, 0.0, 20.0);
+    let mut e = mekf("");
+    e.step(&weave(&mut m, 13.0, 10.0, 6.0));
+    assert!(e.hypotheses.is_some(), "the bank runs");
+    let Filter::Mekf(f) = &mut e.filter else { panic!("mekf") };
+    f.set_speed_hypothesis(-10.0, 1.0);
+    assert!(f.forward_speed() < -hypotheses::REVERSE_MAX);
+    e.step(&weave(&mut m, 13.0, 10.0, 6.0));
+    let u = e.mekf().unwrap().forward_speed();
+    let p = e.power_on_speed().unwrap();
+    println!("published after: {p:?}, forward speed {u:.2} m/s");
+    assert!(u >= -hypotheses::REVERSE_MAX, "forward speed {u}");
+    assert!(p.speed_ms > 0.0, "{p:?}");
+}
+
+#[test]
 fn mekf_a_steady_turn_before_any_standstill_is_no_standstill() {
     // Powered on at 13 m/s, IMU only, no saved state, and no stop: 70 s of
     // weaving (the speed found at the first turns, the bank ended at 60 s),
