@@ -5,7 +5,7 @@
 
 mod common;
 use common::bin;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn gyrocomp(args: &[&str]) -> Output {
@@ -14,6 +14,15 @@ fn gyrocomp(args: &[&str]) -> Output {
 
 fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
+}
+
+/// `gyrocomp simulate ARGS --out D/run`, asserted to succeed; the run's directory.
+fn simulated(d: &Path, args: &[&str]) -> PathBuf {
+    let run = d.join("run");
+    let out = run.to_str().unwrap().to_owned();
+    let o = gyrocomp(&[&["simulate"], args, &["--out", &out]].concat());
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    run
 }
 
 /// The options of a `--help` text: (flag line, description).
@@ -135,9 +144,7 @@ fn dir_bytes(d: &Path) -> u64 {
 #[test]
 fn simulate_never_destroys_an_input_or_leaves_a_half_written_file() {
     let d = tempfile::tempdir().unwrap();
-    let run = d.path().join("run");
-    let o = gyrocomp(&["simulate", "--scenario", "static", "--duration", "20", "--seed", "3", "--out", run.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", text(&o.stderr));
+    let run = simulated(d.path(), &["--scenario", "static", "--duration", "20", "--seed", "3"]);
     let names = |p: &Path| {
         let mut v: Vec<String> = std::fs::read_dir(p).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
         v.sort();
@@ -192,9 +199,7 @@ fn simulate_never_destroys_an_input_or_leaves_a_half_written_file() {
 #[test]
 fn evaluate_never_overwrites_an_input() {
     let d = tempfile::tempdir().unwrap();
-    let run = d.path().join("run");
-    let o = gyrocomp(&["simulate", "--scenario", "static", "--duration", "30", "--out", run.to_str().unwrap()]);
-    assert!(o.status.success());
+    let run = simulated(d.path(), &["--scenario", "static", "--duration", "30"]);
     let truth = std::fs::read(run.join("truth.csv")).unwrap();
     // the report directory is the run directory, with report.json a link to truth.csv
     std::os::unix::fs::symlink(run.join("truth.csv"), run.join("report.json")).unwrap();
@@ -230,9 +235,7 @@ fn evaluate_never_overwrites_an_input() {
 #[test]
 fn evaluate_decodes_a_simulated_run_as_its_own_part() {
     let d = tempfile::tempdir().unwrap();
-    let run = d.path().join("run");
-    let o = gyrocomp(&["simulate", "--scenario", "static", "--duration", "30", "--profile", "adis16465-1", "--out", run.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", text(&o.stderr));
+    let run = simulated(d.path(), &["--scenario", "static", "--duration", "30", "--profile", "adis16465-1"]);
     let o = gyrocomp(&["evaluate", "--input", run.to_str().unwrap()]);
     let out = text(&o.stdout);
     assert!(o.status.success(), "{}", text(&o.stderr));
@@ -258,9 +261,7 @@ fn evaluate_decodes_a_simulated_run_as_its_own_part() {
 #[test]
 fn replay_says_when_no_standstill_was_ever_found_and_why() {
     let d = tempfile::tempdir().unwrap();
-    let run = d.path().join("run");
-    let o = gyrocomp(&["simulate", "--scenario", "static", "--duration", "30", "--profile", "adis16465-1", "--out", run.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", text(&o.stderr));
+    let run = simulated(d.path(), &["--scenario", "static", "--duration", "30", "--profile", "adis16465-1"]);
     let replay = |extra: &str| {
         let cfg = d.path().join("cfg.toml");
         std::fs::write(&cfg, std::fs::read_to_string(run.join("config.toml")).unwrap() + extra).unwrap();
@@ -300,10 +301,7 @@ fn evaluate_tables_state_windows_and_units_and_warn_when_a_window_is_empty() {
     assert!(out.contains("-- scored over t = 10.0..60.0 s"), "{out}");
     // a single run: two tables, each with its window in the title and units under every column
     let d = tempfile::tempdir().unwrap();
-    let run = d.path().join("run");
-    assert!(gyrocomp(&["simulate", "--scenario", "paper", "--duration", "380", "--seed", "2", "--out", run.to_str().unwrap()])
-        .status
-        .success());
+    let run = simulated(d.path(), &["--scenario", "paper", "--duration", "380", "--seed", "2"]);
     let o = gyrocomp(&["evaluate", "--input", run.to_str().unwrap(), "--config", run.join("config.toml").to_str().unwrap()]);
     let out = text(&o.stdout);
     assert!(o.status.success(), "{}", text(&o.stderr));
