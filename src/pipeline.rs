@@ -88,8 +88,7 @@ impl Report {
             );
             if let Some(q) = c.rest_never_found() {
                 s += &format!(
-                    "standstill never found: the quietest deviations were gyro {:.2} deg/s ([rest] gyro_dev_dps {:.2}) and specific force {:.3} g (accel_dev_g {:.3}); if the unit stood still, its noise or vibration is above them (a noisier part than the ADIS16448, seen in blocks of about 204.8 Hz, needs its own [rest])\n",
-                    q.gyro_dps, q.gyro_max_dps, q.accel_g, q.accel_max_g
+                    "standstill never found: the quietest deviations were {q}; if the unit stood still, its noise or vibration is above them (a noisier part than the ADIS16448, seen in blocks of about 204.8 Hz, needs its own [rest])\n"
                 );
             }
             s += &match self.vehicle {

@@ -483,10 +483,7 @@ fn status_line(last: &Option<Estimate>, silent: bool, pipe: &Pipeline, shell: &S
     if let Some(k) = &r.mekf {
         what = format!("; standstill {:.0} s, re-levels {}, restarts {}, refused {:.0} s", k.rest_s, k.relevels, k.restarts, k.gated_s);
         if let Some(q) = k.rest_never_found() {
-            what += &format!(
-                " (none found yet: quietest gyro {:.2} deg/s, [rest] gyro_dev_dps {:.2}; specific force {:.3} g, accel_dev_g {:.3})",
-                q.gyro_dps, q.gyro_max_dps, q.accel_g, q.accel_max_g
-            );
+            what += &format!(" (none found yet: the quietest deviations were {q})");
         }
         if let Some(sp) = &r.speed {
             what += &format!(", speed used {:.0} s ({} frames, {} dropped)", k.speed_used_s, sp.decoded, sp.dropped());

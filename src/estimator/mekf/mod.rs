@@ -250,6 +250,18 @@ pub struct Quietest {
     pub accel_max_g: f64,
 }
 
+impl std::fmt::Display for Quietest {
+    /// "gyro 0.72 deg/s ([rest] gyro_dev_dps 0.60) and specific force 0.012 g
+    /// (accel_dev_g 0.050)": the replay summary and the daemon's status.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "gyro {:.2} deg/s ([rest] gyro_dev_dps {:.2}) and specific force {:.3} g (accel_dev_g {:.3})",
+            self.gyro_dps, self.gyro_max_dps, self.accel_g, self.accel_max_g
+        )
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct Mekf {
     p: MekfParams,
