@@ -117,6 +117,8 @@ fn steady_turn(v: f64, r: f64, lever_arm: [f64; 3]) -> MotionSpec {
         roll_per_lat: -4.0,
         pitch_per_long: 3.0,
         bumps: vec![],
+        ride_roll: vec![],
+        ride_pitch: vec![],
         thermal: Thermal { ambient: 25.0, rise: 0.0, tau: 100.0, drift: 0.0, cycle_amp: 0.0, cycle_period: 1.0 },
         manoeuvre_start: 0.0,
         road: Some(RoadSpec { yaw_rate, lever_arm, vibration: RoadVibration::default(), ..Default::default() }),

@@ -354,7 +354,11 @@ pub fn prepare(o: &SimOptions) -> Result<SimRun, String> {
         return Err(format!("--speed: only the urban scenario puts wheel speeds on the bus, not {:?}", o.scenario));
     }
     let mo = MotionOptions { hard: o.hard, power_on_moving: o.power_on_moving };
-    let spec = scenario::motion_with(&o.scenario, &mo, duration, &mut stream(o.seed, 1), &ranges)?;
+    let mut spec = scenario::motion_with(&o.scenario, &mo, duration, &mut stream(o.seed, 1), &ranges)?;
+    if !matches!(o.scenario.as_str(), "static" | "chamber") {
+        // on a stream of its own: every other draw of the seed stays as it was
+        scenario::add_ride(&mut spec, &mut stream(o.seed, 7));
+    }
     let model = match &o.model {
         Some(m) => m.clone(),
         None => draw_model(&mut stream(o.seed, 2), &ranges),

@@ -187,6 +187,13 @@ pub struct MotionSpec {
     /// Body pitch per g of longitudinal acceleration, deg/g (positive: squats nose-up).
     pub pitch_per_long: f64,
     pub bumps: Vec<Bump>,
+    /// Ride vibration of the body (planar model): roll and pitch, deg, as
+    /// sines of the distance (`freq` in cycles per metre): the road's texture
+    /// shaking the body at `speed / wavelength` Hz, nothing at a standstill
+    /// ([`super::scenario::ride`]). Not part of the grade. The road
+    /// kinematics carry it in `RoadSpec::road_roll` / `road_pitch`.
+    pub ride_roll: Vec<Sine>,
+    pub ride_pitch: Vec<Sine>,
     pub thermal: Thermal,
     /// Start of the manoeuvres, s (scored window for the oracle floor).
     pub manoeuvre_start: f64,
@@ -325,6 +332,10 @@ impl<'a> TruthGen<'a> {
         let (rs, drs) = sum_sines(&s.roll_sines, x);
         let (ps, dps) = sum_sines(&s.pitch_sines, x);
         let (drs, dps) = (drs * xr, dps * xr);
+        // ride vibration: sines of the distance itself
+        let (rr, drr) = sum_sines(&s.ride_roll, dist);
+        let (rp, drp) = sum_sines(&s.ride_pitch, dist);
+        let (drs, dps_body) = (drs + drr * v, dps + drp * v);
         let (al, dal) = s.a_lat.eval(t);
         let (ag, dag) = s.a_long.eval(t);
         let (mut bp, mut dbp) = (0.0, 0.0);
@@ -335,10 +346,10 @@ impl<'a> TruthGen<'a> {
                 dbp += b.pitch * 0.5 * x.sin() * 2.0 * PI / b.dur;
             }
         }
-        let roll = s.roll0 + rs + s.roll_per_lat * al;
+        let roll = s.roll0 + rs + rr + s.roll_per_lat * al;
         let droll = drs + s.roll_per_lat * dal;
-        let pitch = s.pitch0 + ps + s.pitch_per_long * ag + bp;
-        let dpitch = dps + s.pitch_per_long * dag + dbp;
+        let pitch = s.pitch0 + ps + rp + s.pitch_per_long * ag + bp;
+        let dpitch = dps_body + s.pitch_per_long * dag + dbp;
         Tilt { roll: roll * D2R, pitch: pitch * D2R, droll: droll * D2R, dpitch: dpitch * D2R, grade: ps * D2R, dgrade: dps * D2R }
     }
 

@@ -282,6 +282,57 @@ fn sines(rng: &mut ChaCha8Rng, amps: [f64; 2], periods: [f64; 2], n: usize) -> V
         .collect()
 }
 
+/// The speed at which [`RIDE`]'s rates are the ones given, m/s.
+pub const RIDE_SPEED: f64 = 18.0;
+
+/// A car body's ride vibration, as the real car measured it: the comma2k19
+/// RAV4 at 15-20 m/s (`../shared/realdata`, its 3-12 Hz and 12-50 Hz bands,
+/// RMS over 10-s windows, median) shook at roll 0.29 and 0.25 deg/s, pitch
+/// 0.37 and 0.70 deg/s, where the simulated car had only the gyro's noise
+/// (0.04-0.1). Per axis and band: `(axis 0 roll / 1 pitch, wavelengths m,
+/// RMS rate deg/s at RIDE_SPEED, tones)`. The road's texture at wavelength
+/// `l` shakes the body at `v / l` Hz, its rate growing with the speed.
+pub const RIDE: [(usize, [f64; 2], f64, usize); 4] =
+    [(0, [1.5, 6.0], 0.29, 6), (0, [0.36, 1.5], 0.25, 6), (1, [1.5, 6.0], 0.37, 6), (1, [0.36, 1.5], 0.70, 6)];
+
+/// Give a driving scenario's car its ride vibration ([`ride`]): the planar
+/// model's `ride_roll` / `ride_pitch`, the road kinematics' `road_roll` /
+/// `road_pitch` (both sines of the distance).
+pub fn add_ride(spec: &mut MotionSpec, rng: &mut ChaCha8Rng) {
+    let (roll, pitch) = ride(rng);
+    match spec.road.as_mut() {
+        Some(road) => {
+            road.road_roll.extend(roll);
+            road.road_pitch.extend(pitch);
+        }
+        None => {
+            spec.ride_roll = roll;
+            spec.ride_pitch = pitch;
+        }
+    }
+}
+
+/// The ride vibration of one simulated car (roll, pitch: deg, sines of the
+/// distance in cycles per metre), each band's RMS within +-30 % of [`RIDE`]'s.
+pub fn ride(rng: &mut ChaCha8Rng) -> (Vec<Sine>, Vec<Sine>) {
+    let mut out = (Vec::new(), Vec::new());
+    for (axis, lambda, rms, n) in RIDE {
+        let per_tone = rms * uni(rng, [0.7, 1.3]) / (n as f64).sqrt();
+        for _ in 0..n {
+            let l = uni(rng, lambda);
+            // rate amplitude sqrt(2) rms = amp 2 pi v / l at v = RIDE_SPEED
+            let amp = per_tone * std::f64::consts::SQRT_2 * l / (2.0 * std::f64::consts::PI * RIDE_SPEED);
+            let sine = Sine { amp, freq: 1.0 / l, phase: rng.gen_range(0.0..2.0 * std::f64::consts::PI) };
+            if axis == 0 {
+                out.0.push(sine);
+            } else {
+                out.1.push(sine);
+            }
+        }
+    }
+    out
+}
+
 fn thermal(rng: &mut ChaCha8Rng, r: &Ranges) -> Thermal {
     Thermal {
         ambient: uni(rng, r.ambient),
@@ -307,6 +358,8 @@ fn at_rest(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64) -> MotionSpec {
         roll_per_lat: 0.0,
         pitch_per_long: 0.0,
         bumps: vec![],
+        ride_roll: vec![],
+        ride_pitch: vec![],
         thermal: thermal(rng, r),
         manoeuvre_start: 0.0,
         road: None,
@@ -362,6 +415,8 @@ fn road(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64, power_on_moving: bool) 
         roll_per_lat: -uni(rng, [3.0, 5.0]),
         pitch_per_long: uni(rng, [2.0, 4.0]),
         bumps: vec![],
+        ride_roll: vec![],
+        ride_pitch: vec![],
         thermal: thermal(rng, r),
         manoeuvre_start: 350.0_f64.min(duration),
         road: None,

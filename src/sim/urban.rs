@@ -282,6 +282,8 @@ pub fn motion(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64, power_on_moving: 
         roll_per_lat,
         pitch_per_long,
         bumps: vec![],
+        ride_roll: vec![],
+        ride_pitch: vec![],
         thermal,
         manoeuvre_start: 10.0_f64.min(duration),
         road: Some(RoadSpec { yaw_rate, grade, road_pitch, road_roll, lever_arm: r.lever_arm, vibration }),

@@ -95,3 +95,35 @@ pub fn write_gz<'a>(p: &std::path::Path, lines: impl IntoIterator<Item = std::bo
     }
     out.finish().unwrap();
 }
+
+/// A second-order Butterworth section (bilinear transform), `high` pass or
+/// low pass at `fc` Hz for a signal sampled at `fs` Hz, run over `x`.
+pub fn butterworth2(x: &[f64], fs: f64, fc: f64, high: bool) -> Vec<f64> {
+    let w = 2.0 * std::f64::consts::PI * fc / fs;
+    let (sn, cs) = w.sin_cos();
+    let alpha = sn / std::f64::consts::SQRT_2;
+    let a0 = 1.0 + alpha;
+    let (b0, b1) = if high { ((1.0 + cs) / 2.0, -(1.0 + cs)) } else { ((1.0 - cs) / 2.0, 1.0 - cs) };
+    let (b0, b1, b2, a1, a2) = (b0 / a0, b1 / a0, b0 / a0, -2.0 * cs / a0, (1.0 - alpha) / a0);
+    let (mut x1, mut x2, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0);
+    x.iter()
+        .map(|&v| {
+            let y = b0 * v + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2;
+            (x2, x1, y2, y1) = (x1, v, y1, y);
+            y
+        })
+        .collect()
+}
+
+/// The RMS of `x` (sampled at `fs` Hz) between `lo` and `hi` Hz (second-
+/// order Butterworth high and low passes, run twice each), over the samples
+/// `keep` selects, the first two seconds left out (the filters settling).
+pub fn band_rms(x: &[f64], fs: f64, lo: f64, hi: f64, keep: impl Fn(usize) -> bool) -> f64 {
+    let mut y = x.to_vec();
+    for _ in 0..2 {
+        y = butterworth2(&butterworth2(&y, fs, lo, true), fs, hi, false);
+    }
+    let skip = (2.0 * fs) as usize;
+    let (s, n) = y.iter().enumerate().skip(skip).filter(|(i, _)| keep(*i)).fold((0.0, 0usize), |(s, n), (_, v)| (s + v * v, n + 1));
+    (s / n.max(1) as f64).sqrt()
+}
