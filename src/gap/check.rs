@@ -151,7 +151,7 @@ pub(crate) fn rates(s: &Samples, bins: &Bins, noise: &NoiseModel) -> Result<Vec<
         let compared = truth_std >= EXCITED_SNR * bin_noise;
         // measured = slope true + c true' (a delay): the multiple correlation
         let det = sxx * sdd - sxd * sxd;
-        let (slope, c) = if det > 1e-12 * sxx * sdd && det > 0.0 {
+        let (slope, c) = if det > 1e-12 * sxx * sdd {
             ((sxy * sdd - sdy * sxd) / det, (sdy * sxx - sxy * sxd) / det)
         } else if sxx > 0.0 {
             (sxy / sxx, 0.0)
