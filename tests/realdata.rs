@@ -91,6 +91,11 @@ fn ours_and_vqf(ours: &gyrocomp::reference::score::Scores, vqf: &gyrocomp::refer
     )
 }
 
+/// A yaw RMS as the tests print it: "1.23", or "not scored".
+fn yaw_text(y: Option<f64>) -> String {
+    y.map_or("not scored".into(), |y| format!("{y:.2}"))
+}
+
 /// `text`, a CSV with a header, gzip-compressed to `p`, each row's fields
 /// changed by `edit` first.
 fn write_csv_gz(p: &std::path::Path, text: &str, mut edit: impl FnMut(&mut [String])) {
@@ -452,8 +457,8 @@ fn powered_on_in_a_moving_hand_no_recording_diverges() {
             println!(
                 "{name} from {t0:.1} s: {}, yaw RMS ours {} VQF {} ({:.0} s scored)",
                 ours_and_vqf(&ours, &vqf),
-                ours.yaw_rms.map_or("not scored".into(), |y| format!("{y:.2}")),
-                vqf.yaw_rms.map_or("not scored".into(), |y| format!("{y:.2}")),
+                yaw_text(ours.yaw_rms),
+                yaw_text(vqf.yaw_rms),
                 ours.scored_s
             );
             assert!(ours.scored_s > 60.0, "{name}: {} s scored: the reference was not found on the cut clock", ours.scored_s);
@@ -714,6 +719,7 @@ fn the_hand_held_unit_tapped_passed_by_a_magnet_without_magnetometer_or_sampled_
         let text = read_gz(&rec.join("imu.csv.gz"));
         let header = text.lines().next().unwrap();
         assert!(header.starts_with("t,gx,gy,gz,ax,ay,az,mx,my,mz,"), "{name}: header {header}");
+        // t and the nine sensor columns; BROAD has no temperature, written back empty
         let rows: Vec<Vec<f64>> =
             text.lines().skip(1).map(|l| l.split(',').take(10).map(|x| x.parse::<f64>().unwrap_or(f64::NAN)).collect()).collect();
         let dt = (rows[rows.len() - 1][0] - rows[0][0]) / (rows.len() - 1) as f64;
@@ -770,14 +776,13 @@ fn the_hand_held_unit_tapped_passed_by_a_magnet_without_magnetometer_or_sampled_
             let mut res = evaluate_recording(&dir, &Config::default(), &RefOptions::default()).unwrap();
             let vqf = res.eval.results.pop().unwrap().scores;
             let ours = res.eval.results.pop().unwrap().scores;
-            let yaw = |y: Option<f64>| y.map_or("not scored".into(), |y| format!("{y:.2}"));
             println!(
                 "{name}, {case}: {}, tilt RMS ours {:.3} VQF {:.3}, yaw RMS ours {} VQF {}",
                 ours_and_vqf(&ours, &vqf),
                 ours.tilt_rms,
                 vqf.tilt_rms,
-                yaw(ours.yaw_rms),
-                yaw(vqf.yaw_rms)
+                yaw_text(ours.yaw_rms),
+                yaw_text(vqf.yaw_rms)
             );
             assert_not_diverged(&ours, &format!("{name}, {case}"));
             assert!(ours.tilt_rms < 1.05 * vqf.tilt_rms, "{name}, {case}: tilt RMS ours {} against VQF's {}", ours.tilt_rms, vqf.tilt_rms);
