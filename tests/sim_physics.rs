@@ -1,7 +1,7 @@
 //! The simulator's truth is physically consistent.
 
 use gyrocomp::sim::motion::{c_nb, to_ned, wrap180, Truth, TruthGen, G};
-use gyrocomp::sim::scenario::{add_ride, motion, Ranges, RIDE, RIDE_SPEED};
+use gyrocomp::sim::scenario::{add_ride, motion, motion_with, MotionOptions, Ranges, RIDE, RIDE_SPEED};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -178,7 +178,7 @@ fn a_car_shakes_on_its_road_while_it_drives_and_the_shaking_is_in_its_attitude()
         let r = Ranges::for_scenario(scenario);
         let plain = motion(scenario, false, 300.0, &mut ChaCha8Rng::seed_from_u64(seed), &r).unwrap();
         let mut spec = plain.clone();
-        add_ride(&mut spec, &mut ChaCha8Rng::seed_from_u64(seed + 100));
+        add_ride(&mut spec, &mut ChaCha8Rng::seed_from_u64(seed + 100), r.ride_scale);
         let a: Vec<Truth> = TruthGen::new(&plain, RATE).collect();
         let b: Vec<Truth> = TruthGen::new(&spec, RATE).collect();
         let (mut parked, mut n_parked, mut sum2, mut v2, mut n) = (0.0f64, 0, [0.0; 2], 0.0, 0.0);
@@ -209,4 +209,50 @@ fn a_car_shakes_on_its_road_while_it_drives_and_the_shaking_is_in_its_attitude()
         let worst = integration_error(&b);
         assert!(worst < 0.05, "{scenario}: integrated body rates leave the truth attitude by {worst} deg");
     }
+}
+
+/// The `smooth` car never stops after its pull-away (nor, powered on while
+/// driving, at all), drives at 2-30 m/s, and shakes at most 0.3 of the
+/// comma2k19 car's ride; a `crawl` stays within 0.5-3 m/s between its stops,
+/// and half of its seeds never stop. The integrated rates stay on the
+/// attitude (the road kinematics hold).
+#[test]
+fn a_smooth_car_never_stops_and_a_crawl_stays_slow() {
+    for seed in 1..=4u64 {
+        for pom in [false, true] {
+            let r = Ranges::for_scenario("smooth");
+            let o = MotionOptions { hard: false, power_on_moving: pom };
+            let mut spec = motion_with("smooth", &o, 600.0, &mut ChaCha8Rng::seed_from_u64(seed), &r).unwrap();
+            add_ride(&mut spec, &mut ChaCha8Rng::seed_from_u64(seed + 100), r.ride_scale);
+            let tr: Vec<Truth> = TruthGen::new(&spec, RATE).collect();
+            let moving_from = tr.iter().position(|t| t.speed > 1.0).unwrap();
+            // from 40 s on the pull-away has reached the cruise (its speed changes keep within 0.7..1.3 of it)
+            let cruise = tr.iter().filter(|t| t.t >= 40.0);
+            let (lo, hi) = cruise.fold((f64::MAX, f64::MIN), |a, t| (a.0.min(t.speed), a.1.max(t.speed)));
+            println!("smooth seed {seed} pom {pom}: moving from {:.1} s, speed {lo:.2}..{hi:.2} m/s from 40 s", tr[moving_from].t);
+            assert!(lo >= 1.4 && hi < 39.0, "smooth seed {seed}: speed {lo}..{hi} m/s after the pull-away");
+            assert!(tr[moving_from..].iter().all(|t| t.speed > 0.5), "smooth seed {seed} slows under 0.5 m/s");
+            assert!(!pom || moving_from == 0, "powered on moving, seed {seed} starts at {} m/s", tr[0].speed);
+            assert!(tr[moving_from].t < 40.0, "seed {seed} pulls away at {} s", tr[moving_from].t);
+            let worst = integration_error(&tr);
+            assert!(worst < 0.05, "smooth seed {seed}: integrated body rates leave the truth attitude by {worst} deg");
+        }
+    }
+    let r = Ranges::for_scenario("smooth");
+    assert!(r.ride_scale[1] <= 0.3 && r.road_vibration_g[1] <= 0.3 * Ranges::for_scenario("urban").road_vibration_g[1]);
+    let mut never_stopped = 0;
+    for seed in 1..=6u64 {
+        let tr = truth("crawl", false, seed, 600.0);
+        let moving_from = tr.iter().position(|t| t.speed > 0.5).unwrap();
+        let hi = tr.iter().fold(0.0f64, |a, t| a.max(t.speed));
+        let stopped = tr[moving_from..].iter().filter(|t| t.speed < 0.1).count() as f64 / RATE;
+        let slow_moving = tr[moving_from..].iter().filter(|t| t.speed >= 0.1 && t.speed < 0.45).count() as f64 / RATE;
+        println!("crawl seed {seed}: top speed {hi:.2} m/s, stopped {stopped:.1} s, 0.1-0.45 m/s {slow_moving:.1} s");
+        assert!(hi <= 3.05, "crawl seed {seed}: {hi} m/s");
+        never_stopped += (stopped == 0.0) as u32;
+        if stopped == 0.0 {
+            assert!(slow_moving == 0.0, "crawl seed {seed} never stops but rolls under 0.45 m/s for {slow_moving} s");
+        }
+    }
+    assert!((1..6).contains(&never_stopped), "{never_stopped} of 6 crawl seeds never stop");
 }

@@ -146,7 +146,7 @@ pub fn evaluate_seeds_with(
     let orc_med = median(&rows.iter().map(|r| r.oracle.tilt_max()).collect::<Vec<_>>());
     let name =
         format!("{}{}{}", sim.scenario, if sim.hard { " --hard" } else { "" }, if sim.power_on_moving { " --power-on-moving" } else { "" });
-    let duration = sim.duration.unwrap_or_else(|| sim::scenario::default_duration(&sim.scenario));
+    let duration = sim.duration.unwrap_or_else(|| sim::scenario::default_duration_of(&sim.scenario, sim.hard));
     out += &format!("\nsummary over {} seeds of {name} ({duration} s)", rows.len());
     if w.is_empty() {
         out += &format!("\n{}\n", w.warning());

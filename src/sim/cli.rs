@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 pub const FILES: [&str; 6] = ["imu.log", "truth.csv", "sensor.toml", "bias.csv", "scenario.toml", "config.toml"];
 
 /// Scenarios that have no manoeuvres for `--hard` to make harder.
-const NO_MANOEUVRES: [&str; 3] = ["static", "chamber", "paper"];
+const NO_MANOEUVRES: [&str; 5] = ["static", "chamber", "paper", "urban", "crawl"];
 
 #[derive(clap::Args, Debug)]
 pub struct SimulateArgs {
@@ -25,7 +25,10 @@ pub struct SimulateArgs {
     /// 1800 s), paper (800 s, gentle then a winding road from 350 s), vehicle
     /// (800 s, gentle then 0.3-0.4 g manoeuvres from 350 s) or urban (400 s of
     /// city driving: stops, tight turns, hills, turn-on bias up to 5 deg/s,
-    /// wheel speeds on the bus). Required.
+    /// wheel speeds on the bus), smooth (600 s of smooth driving at 2-30 m/s
+    /// with little ride vibration and no stop after the pull-away; --hard:
+    /// 200 s of it, then 800 s of hard driving without a stop) or crawl
+    /// (600 s at 0.5-3 m/s, with stops on half of the seeds). Required.
     #[arg(long, value_name = "NAME")]
     pub scenario: String,
     /// Seed of every random draw (motion, sensor errors, noise, calibration);
@@ -35,12 +38,14 @@ pub struct SimulateArgs {
     /// Output directory (created if needed). Required.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// vehicle only: add emergency brakes and swerves of 0.65-0.8 g to the
-    /// manoeuvres. Off by default.
+    /// vehicle: add emergency brakes and swerves of 0.65-0.8 g to the
+    /// manoeuvres; smooth: 800 s of hard driving without a stop after 200 s
+    /// of the smooth drive. Off by default.
     #[arg(long)]
     pub hard: bool,
     /// Duration of the run, s (> 0). Default: the scenario's (static 300,
-    /// chamber 1800, paper and vehicle 800).
+    /// chamber 1800, paper and vehicle 800, urban 400, smooth and crawl 600,
+    /// smooth --hard 1000).
     #[arg(long, value_name = "S", allow_negative_numbers = true, value_parser = positive_seconds)]
     pub duration: Option<f64>,
     /// Part profile (LSBs and sample rate of the log): adis16448, adis16405 or adis16465-1.
@@ -118,7 +123,7 @@ pub fn check_scenario(scenario: &str, hard: bool, duration: Option<f64>, profile
     }
     if hard && NO_MANOEUVRES.contains(&scenario) {
         return Err(format!(
-            "--hard adds emergency brakes and swerves to the vehicle scenario's manoeuvres; scenario {scenario} has none to make harder"
+            "--hard adds emergency brakes and swerves to the vehicle scenario's manoeuvres and hard driving to the smooth one; scenario {scenario} has none to make harder"
         ));
     }
     let p = builtin_profile(profile)

@@ -31,6 +31,7 @@ pub mod model;
 pub mod motion;
 pub mod road;
 pub mod scenario;
+pub mod smooth;
 pub mod stats;
 pub mod urban;
 pub mod wheel;
@@ -338,7 +339,7 @@ pub fn prepare(o: &SimOptions) -> Result<SimRun, String> {
         Some(t) => Ranges::with_overrides(&o.scenario, t)?,
         None => Ranges::for_scenario(&o.scenario),
     };
-    let duration = o.duration.unwrap_or_else(|| scenario::default_duration(&o.scenario));
+    let duration = o.duration.unwrap_or_else(|| scenario::default_duration_of(&o.scenario, o.hard));
     if !(duration.is_finite() && duration > 0.0) {
         return Err(format!("--duration must be > 0, got {duration}"));
     }
@@ -350,14 +351,14 @@ pub fn prepare(o: &SimOptions) -> Result<SimRun, String> {
             return Err(format!("--mounting wants roll,pitch,yaw in deg (roll and yaw within +-180, pitch within +-90), got {m:?}"));
         }
     }
-    if o.speed && o.scenario != "urban" {
-        return Err(format!("--speed: only the urban scenario puts wheel speeds on the bus, not {:?}", o.scenario));
+    if o.speed && !scenario::ROAD_SCENARIOS.contains(&o.scenario.as_str()) {
+        return Err(format!("--speed: only the urban, smooth and crawl scenarios put wheel speeds on the bus, not {:?}", o.scenario));
     }
     let mo = MotionOptions { hard: o.hard, power_on_moving: o.power_on_moving };
     let mut spec = scenario::motion_with(&o.scenario, &mo, duration, &mut stream(o.seed, 1), &ranges)?;
     if !matches!(o.scenario.as_str(), "static" | "chamber") {
         // on a stream of its own: every other draw of the seed stays as it was
-        scenario::add_ride(&mut spec, &mut stream(o.seed, 7));
+        scenario::add_ride(&mut spec, &mut stream(o.seed, 7), ranges.ride_scale);
     }
     let model = match &o.model {
         Some(m) => m.clone(),
@@ -391,7 +392,7 @@ pub fn prepare(o: &SimOptions) -> Result<SimRun, String> {
         );
     }
     // The wheel-speed source: drawn on its own stream, whatever the flags.
-    let wheel = (o.scenario == "urban").then(|| {
+    let wheel = scenario::ROAD_SCENARIOS.contains(&o.scenario.as_str()).then(|| {
         let mut w = stream(o.seed, 5);
         WheelParams {
             id: wheel::WHEEL_SPEEDS_ID,

@@ -26,7 +26,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-pub const SCENARIOS: [&str; 5] = ["static", "chamber", "paper", "vehicle", "urban"];
+pub const SCENARIOS: [&str; 7] = ["static", "chamber", "paper", "vehicle", "urban", "smooth", "crawl"];
 
 /// Ranges the sensor parameters and environment are drawn from. Every field
 /// can be overridden by `gyrocomp simulate --ranges FILE` (a TOML file with
@@ -94,6 +94,14 @@ pub struct Ranges {
     /// Wheel speeds: white noise per wheel and frame, km/h.
     #[serde(default)]
     pub wheel_noise_kmh: f64,
+    /// The car body's ride vibration ([`RIDE`]) times a factor uniform in
+    /// this range (1: the comma2k19 car's; `smooth` 0-0.3).
+    #[serde(default = "one_one")]
+    pub ride_scale: [f64; 2],
+}
+
+fn one_one() -> [f64; 2] {
+    [1.0, 1.0]
 }
 
 /// The paper's Table 1 slopes p1, deg/s per deg C.
@@ -126,6 +134,7 @@ impl Ranges {
             wheel_latency_s: [0.0, 0.0],
             wheel_scale_error: 0.0,
             wheel_noise_kmh: 0.0,
+            ride_scale: one_one(),
         }
     }
 
@@ -156,7 +165,7 @@ impl Ranges {
                 r.self_heating = [10.0, 20.0];
                 r.heating_tau_s = [150.0, 300.0];
             }
-            "urban" => {
+            "urban" | "smooth" | "crawl" => {
                 r.effects = vec![
                     Effect::TurnOnBias,
                     Effect::ThermalLinear,
@@ -177,6 +186,13 @@ impl Ranges {
                 r.wheel_latency_s = [0.02, 0.08];
                 r.wheel_scale_error = 0.03;
                 r.wheel_noise_kmh = 0.03;
+                if name != "urban" {
+                    // a smooth car: a damped body, an electric or quiet
+                    // engine, a good road (a crawl shakes little anyway)
+                    r.ride_scale = [0.0, 0.3];
+                    r.road_vibration_g = [0.0, 0.0036];
+                    r.vibration_g = [0.0, 0.003];
+                }
             }
             _ => {}
         }
@@ -298,8 +314,13 @@ pub const RIDE: [(usize, [f64; 2], f64, usize); 4] =
 /// Give a driving scenario's car its ride vibration ([`ride`]): the planar
 /// model's `ride_roll` / `ride_pitch`, the road kinematics' `road_roll` /
 /// `road_pitch` (both sines of the distance).
-pub fn add_ride(spec: &mut MotionSpec, rng: &mut ChaCha8Rng) {
-    let (roll, pitch) = ride(rng);
+pub fn add_ride(spec: &mut MotionSpec, rng: &mut ChaCha8Rng, scale: [f64; 2]) {
+    // drawn only for a range (every other scenario's draws stay as they were)
+    let k = uni(rng, scale);
+    let (mut roll, mut pitch) = ride(rng);
+    for s in roll.iter_mut().chain(pitch.iter_mut()) {
+        s.amp *= k;
+    }
     match spec.road.as_mut() {
         Some(road) => {
             road.road_roll.extend(roll);
@@ -451,18 +472,20 @@ pub struct MotionOptions {
 /// Build the motion of a scenario with its options.
 pub fn motion_with(name: &str, o: &MotionOptions, duration: f64, rng: &mut ChaCha8Rng, r: &Ranges) -> Result<MotionSpec, String> {
     let hard = o.hard;
-    if r.lever_arm != [0.0; 3] && name != "urban" {
-        return Err(format!("ranges: lever_arm needs the road kinematics of the urban scenario, not {name:?}"));
+    if r.lever_arm != [0.0; 3] && !ROAD_SCENARIOS.contains(&name) {
+        return Err(format!("ranges: lever_arm needs the road kinematics of the urban, smooth or crawl scenario, not {name:?}"));
     }
     if o.power_on_moving && matches!(name, "static" | "chamber") {
         return Err(format!("--power-on-moving: the {name} scenario does not move"));
     }
-    if hard && name == "urban" {
-        return Err("--hard is a variant of the vehicle scenario; urban has its own manoeuvres".into());
+    if hard && matches!(name, "urban" | "crawl") {
+        return Err(format!("--hard is a variant of the vehicle and smooth scenarios; {name} has its own manoeuvres"));
     }
     match name {
         "static" | "chamber" => Ok(at_rest(rng, r, duration)),
         "urban" => Ok(super::urban::motion(rng, r, duration, o.power_on_moving)),
+        "smooth" => Ok(super::smooth::smooth(rng, r, duration, o.power_on_moving, hard)),
+        "crawl" => Ok(super::smooth::crawl(rng, r, duration, o.power_on_moving)),
         "paper" => {
             let (mut spec, mut p) = road(rng, r, duration, o.power_on_moving);
             gentle(rng, &mut p, spec.manoeuvre_start);
@@ -541,10 +564,20 @@ pub fn motion_with(name: &str, o: &MotionOptions, duration: f64, rng: &mut ChaCh
 
 /// Default duration of a scenario, s.
 pub fn default_duration(name: &str) -> f64 {
+    default_duration_of(name, false)
+}
+
+/// Default duration of a scenario and its `--hard` variant, s.
+pub fn default_duration_of(name: &str, hard: bool) -> f64 {
     match name {
         "static" => 300.0,
         "chamber" => 1800.0,
         "urban" => 400.0,
+        "smooth" if hard => super::smooth::HARD_FROM_S + 800.0,
+        "smooth" | "crawl" => 600.0,
         _ => 800.0,
     }
 }
+
+/// The scenarios that drive on the road kinematics ([`super::road`]).
+pub const ROAD_SCENARIOS: [&str; 3] = ["urban", "smooth", "crawl"];

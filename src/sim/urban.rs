@@ -44,22 +44,22 @@ pub const MAX_LAT: f64 = 0.6;
 /// The longitudinal plan: an eased acceleration profile with the speed
 /// tracked exactly at the knots (the mean of a half-cosine ease between two
 /// levels is their average).
-struct Long {
-    a: Ease,
-    t: f64,
-    v: f64,
+pub(super) struct Long {
+    pub(super) a: Ease,
+    pub(super) t: f64,
+    pub(super) v: f64,
     lvl: f64,
 }
 
 impl Long {
-    fn new(v0: f64) -> Long {
+    pub(super) fn new(v0: f64) -> Long {
         let mut a = Ease::default();
         a.push(0.0, 0.0);
         Long { a, t: 0.0, v: v0, lvl: 0.0 }
     }
 
     /// Ease to `lvl` (g) over `ramp` s, hold it `hold` s.
-    fn seg(&mut self, lvl: f64, ramp: f64, hold: f64) {
+    pub(super) fn seg(&mut self, lvl: f64, ramp: f64, hold: f64) {
         self.v += G * (0.5 * (self.lvl + lvl) * ramp + lvl * hold);
         self.t += ramp;
         self.a.push(self.t, lvl);
@@ -73,7 +73,7 @@ impl Long {
     /// Reach `target` m/s with zero acceleration at the end: ease to a level
     /// of magnitude `mag` (g) over `r1`, hold, ease to 0 over `r2`. Returns
     /// the level used (smaller than `mag` when the change is short).
-    fn reach(&mut self, target: f64, mag: f64, r1: f64, r2: f64) -> f64 {
+    pub(super) fn reach(&mut self, target: f64, mag: f64, r1: f64, r2: f64) -> f64 {
         let dv = target - self.v;
         let solve = |l0: f64| -> (f64, f64) {
             let l = dv.signum() * mag;
