@@ -354,7 +354,8 @@ pub fn ride(rng: &mut ChaCha8Rng) -> (Vec<Sine>, Vec<Sine>) {
     out
 }
 
-fn thermal(rng: &mut ChaCha8Rng, r: &Ranges) -> Thermal {
+/// The unit's temperature: ambient, self-heating and its time constant drawn from the ranges.
+pub(super) fn thermal(rng: &mut ChaCha8Rng, r: &Ranges) -> Thermal {
     Thermal {
         ambient: uni(rng, r.ambient),
         rise: uni(rng, r.self_heating),

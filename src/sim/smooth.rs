@@ -20,13 +20,12 @@
 //!   seeds (drawn) stop every 20-90 s for 3-20 s, the others never stop
 //!   after the pull-away.
 
-use super::motion::{Ease, MotionSpec, Sine, Thermal, G};
-use super::road::{RoadSpec, RoadVibration};
-use super::scenario::{uni, Ranges};
-use super::urban::Long;
+use super::motion::{Ease, MotionSpec, G};
+use super::road::RoadSpec;
+use super::scenario::{thermal, uni, Ranges};
+use super::urban::{ride_vibration, slow_sine, Long};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
-use std::f64::consts::PI;
 
 /// `smooth --hard`: the smooth drive lasts this long before the hard one, s.
 pub const HARD_FROM_S: f64 = 200.0;
@@ -211,31 +210,11 @@ fn crawl_phase(d: &mut Drive, until: f64, stops: bool) {
 /// every smooth or crawling drive shares.
 fn road(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64, a_long: Ease, yaw_rate: Ease, v0: f64, start: f64) -> MotionSpec {
     let yaw0 = rng.gen_range(-180.0..180.0);
-    let lam = |rng: &mut ChaCha8Rng, a: [f64; 2], l: [f64; 2]| Sine {
-        amp: uni(rng, a),
-        freq: 1.0 / uni(rng, l),
-        phase: rng.gen_range(0.0..2.0 * PI),
-    };
-    let grade = vec![lam(rng, [1.5, 3.0], [300.0, 900.0]), lam(rng, [0.5, 1.5], [80.0, 250.0])];
-    let road_pitch = vec![lam(rng, [0.02, 0.1], [4.0, 15.0])];
-    let road_roll = vec![lam(rng, [0.5, 1.5], [50.0, 300.0]), lam(rng, [0.02, 0.1], [3.0, 12.0])];
-    let vz: f64 = uni(rng, r.road_vibration_g);
-    let tones = (0..6)
-        .map(|_| {
-            let f = uni(rng, [8.0, 45.0]);
-            let ph = rng.gen_range(0.0..2.0 * PI);
-            (f, ph, [0.4 * vz, 0.5 * vz, vz])
-        })
-        .collect();
-    let vibration = RoadVibration { tones: if vz > 0.0 { tones } else { vec![] }, v_ref: 10.0 };
-    let thermal = Thermal {
-        ambient: uni(rng, r.ambient),
-        rise: uni(rng, r.self_heating),
-        tau: uni(rng, r.heating_tau_s),
-        drift: 0.0,
-        cycle_amp: 0.0,
-        cycle_period: 1.0,
-    };
+    let grade = vec![slow_sine(rng, [1.5, 3.0], [300.0, 900.0]), slow_sine(rng, [0.5, 1.5], [80.0, 250.0])];
+    let road_pitch = vec![slow_sine(rng, [0.02, 0.1], [4.0, 15.0])];
+    let road_roll = vec![slow_sine(rng, [0.5, 1.5], [50.0, 300.0]), slow_sine(rng, [0.02, 0.1], [3.0, 12.0])];
+    let vibration = ride_vibration(rng, r);
+    let thermal = thermal(rng, r);
     MotionSpec {
         duration,
         a_long,

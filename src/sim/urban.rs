@@ -23,9 +23,9 @@
 //!   road vibration growing with speed, engine idle vibration (the sensor
 //!   model's two tones, small) that is all there is at a stop.
 
-use super::motion::{Ease, MotionSpec, Sine, Thermal, G};
+use super::motion::{Ease, MotionSpec, Sine, G};
 use super::road::{RoadSpec, RoadVibration};
-use super::scenario::{uni, Ranges};
+use super::scenario::{thermal, uni, Ranges};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
@@ -242,31 +242,11 @@ pub fn motion(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64, power_on_moving: 
     let a_long = pl.p.a;
     let yaw_rate = turns(pl.rng, &a_long, v0, duration);
     let rng = pl.rng;
-    let lam = |rng: &mut ChaCha8Rng, a: [f64; 2], l: [f64; 2]| Sine {
-        amp: uni(rng, a),
-        freq: 1.0 / uni(rng, l),
-        phase: rng.gen_range(0.0..2.0 * PI),
-    };
-    let grade = vec![lam(rng, [3.5, 4.5], [250.0, 600.0]), lam(rng, [1.5, 2.5], [80.0, 200.0])];
-    let road_pitch = vec![lam(rng, [0.1, 0.3], [4.0, 15.0])];
-    let road_roll = vec![lam(rng, [0.5, 1.5], [50.0, 300.0]), lam(rng, [0.1, 0.3], [3.0, 12.0])];
-    let vz: f64 = uni(rng, r.road_vibration_g);
-    let tones = (0..6)
-        .map(|_| {
-            let f = uni(rng, [8.0, 45.0]);
-            let ph = rng.gen_range(0.0..2.0 * PI);
-            (f, ph, [0.4 * vz, 0.5 * vz, vz])
-        })
-        .collect();
-    let vibration = RoadVibration { tones: if vz > 0.0 { tones } else { vec![] }, v_ref: 10.0 };
-    let thermal = Thermal {
-        ambient: uni(rng, r.ambient),
-        rise: uni(rng, r.self_heating),
-        tau: uni(rng, r.heating_tau_s),
-        drift: 0.0,
-        cycle_amp: 0.0,
-        cycle_period: 1.0,
-    };
+    let grade = vec![slow_sine(rng, [3.5, 4.5], [250.0, 600.0]), slow_sine(rng, [1.5, 2.5], [80.0, 200.0])];
+    let road_pitch = vec![slow_sine(rng, [0.1, 0.3], [4.0, 15.0])];
+    let road_roll = vec![slow_sine(rng, [0.5, 1.5], [50.0, 300.0]), slow_sine(rng, [0.1, 0.3], [3.0, 12.0])];
+    let vibration = ride_vibration(rng, r);
+    let thermal = thermal(rng, r);
     let roll_per_lat = -uni(rng, [3.0, 5.0]);
     let pitch_per_long = uni(rng, [2.5, 4.0]);
     MotionSpec {
@@ -291,6 +271,28 @@ pub fn motion(rng: &mut ChaCha8Rng, r: &Ranges, duration: f64, power_on_moving: 
 }
 
 /// Speed on a 10 ms grid from the acceleration profile.
+/// A sine of amplitude drawn from `amp` and wavelength (period, s) drawn
+/// from `period`, at a random phase: the road's grades, camber and swell.
+pub(super) fn slow_sine(rng: &mut ChaCha8Rng, amp: [f64; 2], period: [f64; 2]) -> Sine {
+    Sine { amp: uni(rng, amp), freq: 1.0 / uni(rng, period), phase: rng.gen_range(0.0..2.0 * PI) }
+}
+
+/// The ride vibration of a road car: a level drawn from
+/// `road_vibration_g` (g, vertical; lateral 0.5x, longitudinal 0.4x) in
+/// six tones of 8-45 Hz, none when the level is 0. The tones are drawn
+/// either way, so the draws after them do not depend on the level.
+pub(super) fn ride_vibration(rng: &mut ChaCha8Rng, r: &Ranges) -> RoadVibration {
+    let vz: f64 = uni(rng, r.road_vibration_g);
+    let tones = (0..6)
+        .map(|_| {
+            let f = uni(rng, [8.0, 45.0]);
+            let ph = rng.gen_range(0.0..2.0 * PI);
+            (f, ph, [0.4 * vz, 0.5 * vz, vz])
+        })
+        .collect();
+    RoadVibration { tones: if vz > 0.0 { tones } else { vec![] }, v_ref: 10.0 }
+}
+
 fn speed_grid(a_long: &Ease, v0: f64, duration: f64) -> Vec<f64> {
     let h = 0.01;
     let n = (duration / h).ceil() as usize + 2;
