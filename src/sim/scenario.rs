@@ -221,9 +221,20 @@ impl Ranges {
             }
             base.insert(k, v);
         }
-        toml::Value::Table(base).try_into().map_err(|e: toml::de::Error| e.to_string())
+        let r: Ranges = toml::Value::Table(base).try_into().map_err(|e: toml::de::Error| e.to_string())?;
+        let [lo, hi] = r.ride_scale;
+        if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo <= hi && hi <= MAX_RIDE_SCALE) {
+            return Err(format!(
+                "ranges: ride_scale = [{lo:?}, {hi:?}]: want 0 <= low <= high <= {MAX_RIDE_SCALE} (times the comma2k19 car's ride vibration)"
+            ));
+        }
+        Ok(r)
     }
 }
+
+/// The largest `ride_scale`: three times the comma2k19 car's ride (a rough
+/// road or a stiff body; beyond it the body's sines are no longer a car's).
+pub const MAX_RIDE_SCALE: f64 = 3.0;
 
 /// Uniform in `[lo, hi]` (lo when the range is empty).
 pub fn uni(rng: &mut ChaCha8Rng, r: [f64; 2]) -> f64 {
@@ -582,3 +593,19 @@ pub fn default_duration_of(name: &str, hard: bool) -> f64 {
 
 /// The scenarios that drive on the road kinematics ([`super::road`]).
 pub const ROAD_SCENARIOS: [&str; 3] = ["urban", "smooth", "crawl"];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_ride_scale_outside_a_cars_range_is_refused() {
+        for bad in ["[-5.0, 1.0]", "[0.0, 1e300]", "[0.5, 0.2]", "[0.0, nan]"] {
+            let e = Ranges::with_overrides("smooth", &format!("ride_scale = {bad}")).unwrap_err();
+            assert!(e.contains("ride_scale") && e.contains("0 <= low <= high <= 3"), "{bad}: {e}");
+        }
+        let r = Ranges::with_overrides("smooth", "ride_scale = [0.0, 3.0]").unwrap();
+        assert_eq!(r.ride_scale, [0.0, 3.0]);
+        assert_eq!(Ranges::with_overrides("urban", "").unwrap().ride_scale, [1.0, 1.0]);
+    }
+}
