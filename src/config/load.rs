@@ -134,6 +134,23 @@ mod tests {
     }
 
     #[test]
+    fn the_speed_belief_keys_have_their_physical_ranges() {
+        for (key, v) in [
+            ("max_forward_speed", "200.0"),
+            ("max_reverse_speed", "-1.0"),
+            ("speed_bound_sigma", "0.0"),
+            ("accel_noise_quiet", "1e300"),
+            ("accel_ref", "nan"),
+            ("accel_bias_g", "2.0"),
+        ] {
+            let e = bad(&format!("[mekf]\n{key} = {v}\n"));
+            assert!(e.contains(&format!("mekf.{key}")) && e.contains("line 2"), "{key}: {e}");
+        }
+        let c = Config::parse("[mekf]\nmax_forward_speed = 0.0\naccel_bias_g = 0.0\n", "t").unwrap();
+        assert_eq!((c.mekf.max_forward_speed, c.mekf.accel_bias_g), (0.0, 0.0));
+    }
+
+    #[test]
     fn type_errors_read_in_plain_words() {
         let e = bad("[input]\nrate_hz = \"fast\"\n");
         assert!(e.contains("expected a number") && !e.contains("f64"), "{e}");

@@ -340,6 +340,24 @@ pub struct MekfConfig {
     /// descend faster (7 % at 100 km/h). Beyond it the vertical velocity is
     /// held to the bound (1-sigma 0.5 m/s); 0 turns the bound off. Default 2.
     pub max_vertical_speed: f64,
+    /// A vehicle's forward-speed band, m/s: with nothing else measuring
+    /// it, a car's speed stays within `-max_reverse_speed ..
+    /// max_forward_speed`; a forward velocity beyond is held to the bound
+    /// (one-sided, never gated, 1-sigma `speed_bound_sigma`). Inside the
+    /// band it says nothing. 0 turns the bound off. Defaults 60, 5 and 1.
+    pub max_forward_speed: f64,
+    pub max_reverse_speed: f64,
+    pub speed_bound_sigma: f64,
+    /// The velocity noise of a quiet car, m/s^2/sqrt(Hz): a car cruising
+    /// smoothly keeps its speed. It rises to `accel_noise` as the tick's
+    /// acceleration (its mean beyond gravity and its vibration) reaches
+    /// `accel_ref`, m/s^2. Defaults 0.01 and 0.5.
+    pub accel_noise_quiet: f64,
+    pub accel_ref: f64,
+    /// The accelerometer's bias, g: the tilt takes it in at a stop; once
+    /// the car has turned it drives the velocity, and a velocity that old
+    /// no longer refuses a standstill. Default 0.01.
+    pub accel_bias_g: f64,
     /// 1-sigma of the velocity of a unit that is not a vehicle, m/s. Default 1.0.
     pub free_velocity_sigma: f64,
     /// Not a vehicle: time constant of the navigation-frame low-pass of the
@@ -401,6 +419,12 @@ impl Default for MekfConfig {
             handheld_rate_dps: 15.0,
             nhc_sigma: 0.3,
             max_vertical_speed: 2.0,
+            max_forward_speed: 60.0,
+            max_reverse_speed: 5.0,
+            speed_bound_sigma: 1.0,
+            accel_noise_quiet: 0.01,
+            accel_ref: 0.5,
+            accel_bias_g: 0.01,
             free_velocity_sigma: 1.0,
             accel_tau_s: 3.0,
             tilt_sigma_deg: 0.2,

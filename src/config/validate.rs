@@ -33,6 +33,14 @@ impl Config {
                 err(key, format!("must be >= 0, got {v}"))
             }
         }
+        fn within(key: &str, v: f64, lo: f64, hi: f64) -> Result<(), (String, String)> {
+            finite(key, v)?;
+            if (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                err(key, format!("must be within {lo}..{hi}, got {v}"))
+            }
+        }
         fn band(key: &str, b: [f64; 2]) -> Result<(), (String, String)> {
             finite(key, b[0])?;
             finite(key, b[1])?;
@@ -148,6 +156,12 @@ impl Config {
         positive("mekf.rest_tilt_sigma_deg", m.rest_tilt_sigma_deg)?;
         positive("mekf.nhc_sigma", m.nhc_sigma)?;
         non_negative("mekf.max_vertical_speed", m.max_vertical_speed)?;
+        within("mekf.max_forward_speed", m.max_forward_speed, 0.0, 150.0)?;
+        within("mekf.max_reverse_speed", m.max_reverse_speed, 0.0, 30.0)?;
+        within("mekf.speed_bound_sigma", m.speed_bound_sigma, 0.01, 30.0)?;
+        within("mekf.accel_noise_quiet", m.accel_noise_quiet, 1e-6, 10.0)?;
+        within("mekf.accel_ref", m.accel_ref, 1e-3, 50.0)?;
+        within("mekf.accel_bias_g", m.accel_bias_g, 0.0, 0.5)?;
         positive("mekf.handheld_rate_dps", m.handheld_rate_dps)?;
         positive("mekf.free_velocity_sigma", m.free_velocity_sigma)?;
         positive("mekf.accel_tau_s", m.accel_tau_s)?;

@@ -241,6 +241,12 @@ pub fn mekf_params(cfg: &Config) -> MekfParams {
         q_scale: m.scale_walk * m.scale_walk,
         nhc_var: m.nhc_sigma * m.nhc_sigma,
         max_vertical_speed: m.max_vertical_speed,
+        max_forward_speed: m.max_forward_speed,
+        max_reverse_speed: m.max_reverse_speed,
+        speed_bound_sigma: m.speed_bound_sigma,
+        q_accel_quiet: m.accel_noise_quiet * m.accel_noise_quiet,
+        accel_ref: m.accel_ref,
+        accel_bias_g: m.accel_bias_g,
         vehicle: match m.vehicle {
             crate::config::AutoBool::Auto => mekf::Vehicle::Auto,
             crate::config::AutoBool::Bool(true) => mekf::Vehicle::On,

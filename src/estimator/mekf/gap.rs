@@ -60,11 +60,12 @@ impl Mekf {
         a.omega = [0.0; 3];
         a.magn = [0.0; 3];
         a.accel = [0.0; 3];
+        a.accel2 = 0.0;
         self.rest.reset();
         self.switching.reset();
         self.pulls.gap();
         self.dwell = 0.0;
-        self.still_speed = None;
+        self.quiet_since_gap = false;
         self.after_gap = true;
         self.bias_sigma_cache = self.bias_sigma();
     }

@@ -42,6 +42,7 @@ impl Mekf {
         let q_bias = if self.learns_in_motion() && !a.rest { self.p.q_bias.max(self.p.q_bias_motion) } else { self.p.q_bias };
         // In place: M = Φ P changes the θ and v rows only, and the v rows
         // read the θ rows before these change; P' = M Φ^T likewise by columns.
+        let q_v = self.velocity_noise(a);
         let p = &mut self.cov;
         for k in 0..N {
             // M = Φ P (rows): v rows += B P_θ· + D P_b·, then θ rows += A P_b·
@@ -82,7 +83,7 @@ impl Mekf {
             let s = if i == 2 { turned_z } else { turned };
             out[TH + i][TH + i] += self.p.q_gyro * t + s * s;
             out[BI + i][BI + i] += q_bias * t;
-            out[VE + i][VE + i] += self.p.q_accel * t;
+            out[VE + i][VE + i] += q_v * t;
         }
         if self.p.speed_aided {
             out[SC][SC] += self.p.q_scale * t;
@@ -95,6 +96,31 @@ impl Mekf {
                 out[j][i] = v;
             }
         }
+    }
+
+    /// The velocity's noise over the tick, (m/s)^2/s: a car's acceleration
+    /// is not white (a vehicle's only). Driving and shaking (the tick's mean acceleration
+    /// beyond gravity, and the vibration about it) it is `q_accel`; quiet,
+    /// only `q_accel_quiet` (a car's smooth cruise keeps its speed, and a
+    /// velocity that wandered as under braking would let a cruise pass for
+    /// a stop). Between, in proportion to the acceleration's power against
+    /// `accel_ref` squared.
+    pub(super) fn velocity_noise(&self, a: &Accum) -> f64 {
+        let (t, n) = (a.t, a.n as f64);
+        // a hand's motion is not a car's: a free unit keeps `q_accel`
+        if !self.vehicle || t <= 0.0 || a.n == 0 {
+            return self.p.q_accel;
+        }
+        let mean = [a.accel[0] / n, a.accel[1] / n, a.accel[2] / n];
+        let var = (a.accel2 / n - (mean[0] * mean[0] + mean[1] * mean[1] + mean[2] * mean[2])).max(0.0) * G * G;
+        let d = [a.dv[0] / t, a.dv[1] / t, a.dv[2] / t + G];
+        let power = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] + var;
+        // a knock: vibration beyond any car body's ride within the tick,
+        // whose integral is no car's change of speed
+        let r2 = self.p.accel_ref * self.p.accel_ref;
+        let shock = (var - (SHOCK_G * G).powi(2)).max(0.0);
+        let share = (power / r2).min(1.0) + shock / r2;
+        self.p.q_accel_quiet + (self.p.q_accel - self.p.q_accel_quiet).max(0.0) * share
     }
 
     /// One scalar update `nu = h dx + noise(r)`, gated; the gain rows of the

@@ -70,6 +70,7 @@ impl Mekf {
             h[VE + 2] = 1.0;
             let _ = self.update(&h, vmax.copysign(self.v[2]) - self.v[2], VERTICAL_BOUND_SIGMA * VERTICAL_BOUND_SIGMA, gain, f64::INFINITY);
         }
+        self.speed_bound_update(omega, gain);
         (fused, gated)
     }
 

@@ -47,6 +47,7 @@ mod measure;
 mod motion_model;
 mod params;
 mod tick;
+mod velocity_belief;
 
 use forward_axis::{PullAways, VehicleAxes};
 use gravity_lp::{GravityLp, LpGains};
@@ -63,12 +64,14 @@ const TH: usize = 0;
 const BI: usize = 3;
 const VE: usize = 6;
 const SC: usize = 9;
+/// Within a tick, an RMS vibration about the mean beyond this (g) is a
+/// knock, not a car body's ride (the comma2k19 car's is 0.08 g): its
+/// integral is no change of the car's speed, and the velocity's noise
+/// rises with it (`velocity_noise`).
+const SHOCK_G: f64 = 0.5;
 /// Standard gravity, m/s^2 per g.
 pub const G: f64 = 9.80665;
 const D2R: f64 = std::f64::consts::PI / 180.0;
-/// A unit that becomes still at a speed above this (m/s, and above three
-/// sigmas) is cruising smoothly, not standing: no zero-velocity update.
-const CRUISE_SPEED: f64 = 1.0;
 /// A bias estimate further than this many prior sigmas (the part's turn-on
 /// range) from the prior is not a bias but a diverged filter: it restarts.
 const BIAS_LIMIT_SIGMAS: f64 = 4.0;
@@ -173,6 +176,8 @@ struct Accum {
     omega: [f64; 3],
     magn: [f64; 3],
     accel: [f64; 3],
+    /// Σ |accelerometer|^2, g^2 (the tick's vibration, `propagate`).
+    accel2: f64,
     /// Σ |omega| dt, rad.
     turned: f64,
     /// Σ |turn rate about the vertical| dt, rad.
@@ -331,9 +336,13 @@ pub struct Mekf {
     /// low-passed gravity since the last start or re-level (the field's
     /// dip re-taken, the bias learned in motion provisionally).
     tilt_settled: bool,
-    /// Speed and its sigma when the unit became still (m/s).
-    still_speed: Option<(f64, f64)>,
-    /// A counter gap happened and no still period has ended since.
+    /// Since the last standstill: ∫ 2|sin(Δψ/2)| dt, s, Δψ the heading
+    /// turned since (`velocity_belief`), and the heading there.
+    turn_exposure: f64,
+    yaw_at_stop: Option<f64>,
+    /// A quiet period began after the last counter gap (`after_gap`).
+    quiet_since_gap: bool,
+    /// A counter gap happened and no quiet period has ended since.
     after_gap: bool,
     /// The heading the car turned to over a gap is not known yet: the next
     /// magnetic heading turns the whole state to it (`turn_heading`).
@@ -418,7 +427,9 @@ impl Mekf {
             gravity_refused: 0.0,
             gravity_held: 0.0,
             tilt_settled: false,
-            still_speed: None,
+            turn_exposure: 0.0,
+            yaw_at_stop: None,
+            quiet_since_gap: false,
             after_gap: false,
             heading_open: false,
             last_w: [0.0; 3],
@@ -711,6 +722,7 @@ impl Mekf {
             a.magn[i] += s.magn[i];
             a.accel[i] += s.accel[i];
         }
+        a.accel2 += s.accel[0] * s.accel[0] + s.accel[1] * s.accel[1] + s.accel[2] * s.accel[2];
         a.suspect |= s.suspect;
         a.quasi &= at_rest || self.dwell >= self.p.dwell_s;
         a.rest &= at_rest;
@@ -777,8 +789,8 @@ impl Mekf {
         self.bias_known = false;
         // the field's dip was measured with the diverged tilt
         self.mag_ref = None;
-        self.still_speed = None;
         self.refused_still = 0.0;
+        self.quiet_since_gap = false;
         self.nhc_refused = 0.0;
         self.gravity_refused = 0.0;
         self.refused_share = 0.0;

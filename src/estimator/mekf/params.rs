@@ -44,6 +44,18 @@ pub struct MekfParams {
     pub nhc_var: f64,
     /// A vehicle's largest vertical speed, m/s (0: no bound).
     pub max_vertical_speed: f64,
+    /// A vehicle's forward-speed band, m/s (`speed_bound_update`; forward
+    /// 0: no bound), and the bound's sigma, m/s.
+    pub max_forward_speed: f64,
+    pub max_reverse_speed: f64,
+    pub speed_bound_sigma: f64,
+    /// The velocity noise of a quiet car, (m/s^2)^2/Hz, and the
+    /// acceleration (m/s^2) from which it is `q_accel` (`velocity_noise`).
+    pub q_accel_quiet: f64,
+    pub accel_ref: f64,
+    /// The accelerometer bias, g, whose turn since the last stop ages the
+    /// velocity (`velocity_age_var`).
+    pub accel_bias_g: f64,
     /// Whether the unit is in a ground vehicle.
     pub vehicle: Vehicle,
     /// `Vehicle::Auto`: the RMS over 3 s of the body x/y rates' swing about

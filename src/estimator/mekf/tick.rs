@@ -40,34 +40,28 @@ impl Mekf {
         let f_mean = [a.accel[0] / n, a.accel[1] / n, a.accel[2] / n];
         let field_turned = self.field_turned(&a);
         let still = imu_still && !a.suspect && (wheel.is_some() || !(field_turned || self.turning_at_speed(&omega, &f_mean)));
-        // A steady signal at a speed the filter is sure of is a smooth
-        // cruise, not a standstill: the gyro still reads the bias on a
-        // straight and gravity is still gravity, but the velocity is not zero.
-        // The speed is taken when the signal becomes steady: a velocity that
-        // grows while the unit is still is the tilt's error, not a cruise.
-        if !still {
-            if self.still_speed.is_some() {
-                self.after_gap = false;
-            }
-            self.still_speed = None;
-        } else if self.still_speed.is_none() {
-            let sv = (self.cov[VE][VE] + self.cov[VE + 1][VE + 1] + self.cov[VE + 2][VE + 2]).max(0.0).sqrt();
-            self.still_speed = Some((norm(&self.v), sv));
+        // A stop is a physical event: a car the filter knows to be moving
+        // cannot stand without a deceleration the accelerometer measured. A
+        // still period whose zero velocity the velocity state refuses (its
+        // NIS against zero beyond the gate) is a smooth cruise: the gyro
+        // still reads the bias on a straight and gravity is still gravity,
+        // but the velocity is not zero. A velocity that has become unknown
+        // (a gap widens it; an accelerometer bias turned with the car since
+        // its last stop, `velocity_age_var`) lets the standstill in. Only a
+        // vehicle cruises: a free unit's velocity is a bounded guess about
+        // zero (it goes nowhere on average), never evidence of speed.
+        // After a counter gap the velocity is a guess (the unit may have been
+        // knocked, re-mounted or stopped meanwhile): the first quiet period
+        // after it is judged with the velocity unknown.
+        if a.quiet {
+            self.quiet_since_gap = self.after_gap;
+        } else if self.quiet_since_gap {
+            self.after_gap = false;
+            self.quiet_since_gap = false;
         }
-        // After a gap the velocity the filter holds is a guess (the unit may
-        // have been re-mounted or stopped meanwhile): the first still period
-        // is a standstill.
-        // Before the bias is known (powered on while driving, no saved
-        // state) the speed is the filter's guess, not evidence: a still
-        // period then is a standstill, as after a gap.
-        // Only a vehicle cruises: a free unit's velocity is a bounded guess
-        // about zero (it goes nowhere on average), never evidence of speed.
-        let cruising = self.vehicle
-            && !wheel_standing
-            && !self.after_gap
-            && (self.bias_known || wheel.is_some())
-            && self.still_speed.is_some_and(|(v, sv)| v > CRUISE_SPEED.max(3.0 * sv));
+        let cruising = self.vehicle && !wheel_standing && still && !self.after_gap && self.zero_velocity_nis() > self.p.gate;
         let at_rest = still && !cruising;
+        self.age_velocity(t, at_rest);
         // The paper's policy: what takes the accelerometer for gravity (the
         // low-passed tilt and the bounded velocity of a unit that is not a
         // vehicle) teaches the bias only when the data say quasi-static.

@@ -1,0 +1,200 @@
+//! What the filter's own velocity says about the car: whether a still
+//! period is a stop or a smooth cruise (`zero_velocity_nis`), how far that
+//! velocity may have drifted since the last stop (`velocity_age_var`), and
+//! the bounds a car's forward speed keeps when nothing measures it
+//! (`speed_bound_update`).
+
+use super::*;
+
+impl Mekf {
+    /// The velocity's NIS against standing, `vᵀ (P_vv + (σ_zupt² + age) I)⁻¹ v`:
+    /// beyond the gate, the velocity state refuses a standstill. A
+    /// covariance that is not positive definite says the velocity is not
+    /// known: 0 (nothing refuses the stop).
+    pub(super) fn zero_velocity_nis(&self) -> f64 {
+        let extra = self.p.zupt_var + self.velocity_age_var();
+        let mut m = [[0.0; 3]; 3];
+        for (i, row) in m.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = self.cov[VE + i][VE + j];
+            }
+            row[i] += extra;
+        }
+        let adj = [
+            [m[1][1] * m[2][2] - m[1][2] * m[2][1], m[0][2] * m[2][1] - m[0][1] * m[2][2], m[0][1] * m[1][2] - m[0][2] * m[1][1]],
+            [m[1][2] * m[2][0] - m[1][0] * m[2][2], m[0][0] * m[2][2] - m[0][2] * m[2][0], m[0][2] * m[1][0] - m[0][0] * m[1][2]],
+            [m[1][0] * m[2][1] - m[1][1] * m[2][0], m[0][1] * m[2][0] - m[0][0] * m[2][1], m[0][0] * m[1][1] - m[0][1] * m[1][0]],
+        ];
+        let det = m[0][0] * adj[0][0] + m[0][1] * adj[1][0] + m[0][2] * adj[2][0];
+        if !(det > 0.0 && det.is_finite()) {
+            return 0.0;
+        }
+        let v = self.v;
+        let x = rotate(&adj, &v);
+        ((v[0] * x[0] + v[1] * x[1] + v[2] * x[2]) / det).max(0.0)
+    }
+
+    /// The variance, (m/s)^2, an accelerometer bias of `accel_bias_g` has
+    /// added to the velocity since the last standstill. At the stop the
+    /// tilt took the bias in (the two are one there); once the car has
+    /// turned by Δψ the bias no longer cancels, and the velocity integrates
+    /// `|R(Δψ) − I| b = 2 |sin(Δψ/2)| b`. On a straight road it stays 0.
+    pub(super) fn velocity_age_var(&self) -> f64 {
+        let s = self.p.accel_bias_g * G * self.turn_exposure;
+        s * s
+    }
+
+    /// Per tick: the heading turned since the last standstill, integrated
+    /// (`velocity_age_var`); a standstill starts it again.
+    pub(super) fn age_velocity(&mut self, t: f64, at_rest: bool) {
+        let yaw = quat::euler(&self.c)[2];
+        if at_rest {
+            self.turn_exposure = 0.0;
+            self.yaw_at_stop = Some(yaw);
+            return;
+        }
+        let y0 = *self.yaw_at_stop.get_or_insert(yaw);
+        self.turn_exposure += 2.0 * (0.5 * wrap_pi(yaw - y0)).sin().abs() * t;
+    }
+
+    /// A car's forward speed stays within `-max_reverse_speed ..
+    /// max_forward_speed`: a forward velocity beyond is a pitch (or an
+    /// accelerometer bias) integrated into a speed no car has, with no stop
+    /// or wheel to say so. Held to the bound, one-sided, never gated:
+    /// inside the band it says nothing (a crawl is not pulled to a cruise).
+    pub(super) fn speed_bound_update(&mut self, omega: &[f64; 3], gain: Gain) {
+        let (fwd, rev) = (self.p.max_forward_speed, self.p.max_reverse_speed);
+        if !self.vehicle || fwd <= 0.0 {
+            return;
+        }
+        let (val, h) = self.body_velocity_row(0, omega);
+        let bound = if val > fwd {
+            fwd
+        } else if val < -rev {
+            -rev
+        } else {
+            return;
+        };
+        let var = self.p.speed_bound_sigma * self.p.speed_bound_sigma;
+        let _ = self.update(&h, bound - val, var, gain, f64::INFINITY);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A level car (vehicle model on, no magnetometer) started with an
+    /// unread bias, its forward speed `u` known to `sigma`.
+    fn car(u: f64, sigma: f64) -> Mekf {
+        let p = crate::estimator::mekf_params(&crate::config::Config::default());
+        let sw = Switching::new(&crate::config::SwitchingConfig::default(), 200.0);
+        let mut m = Mekf::new(MekfParams { vehicle: Vehicle::On, mag: MagUse::Off, ..p }, sw);
+        m.start(&[0.0, 0.0, -1.0], &[0.0; 3], [0.0; 3], [0.2 * D2R; 3], false);
+        m.set_speed_hypothesis(u, sigma);
+        m.set_scoring(false);
+        m
+    }
+
+    /// Feed `s` seconds of a perfectly quiet IMU (gravity, no rate) at
+    /// 200 Hz; the seconds flagged standstill.
+    fn quiet(m: &mut Mekf, s: f64) -> f64 {
+        let dt = 1.0 / 200.0;
+        let mut standing = 0.0;
+        for k in 0..(s / dt) as usize {
+            let st = StepIn {
+                dt,
+                t: k as f64 * dt,
+                gyro: [0.0; 3],
+                accel: [0.0, 0.0, -1.0],
+                magn: [0.0; 3],
+                temp: 20.0,
+                g0: 1.0,
+                dbias: [0.0; 3],
+                suspect: false,
+            };
+            if m.step(&st).1 & flags::STANDSTILL != 0 {
+                standing += dt;
+            }
+        }
+        standing
+    }
+
+    /// A car cruising at 15 m/s on a straight is as quiet as a parked one:
+    /// its velocity refuses the standstill (no flag, the speed kept), with
+    /// the bias not yet read and no timer forcing a re-level. The same
+    /// quiet with the speed known to be 0, or not known at all, is a stop.
+    #[test]
+    fn a_quiet_imu_at_a_known_speed_is_a_cruise_not_a_stop() {
+        let mut cruise = car(15.0, 0.5);
+        assert_eq!(quiet(&mut cruise, 20.0), 0.0, "no standstill at 15 m/s");
+        assert!((cruise.forward_speed() - 15.0).abs() < 0.5, "the speed is kept: {}", cruise.forward_speed());
+        assert_eq!(cruise.counters().relevels, 0, "no re-level");
+        let mut parked = car(0.0, 0.5);
+        assert!(quiet(&mut parked, 20.0) > 15.0, "a parked car stands");
+        let mut unknown = car(15.0, 30.0);
+        assert!(quiet(&mut unknown, 20.0) > 15.0, "a speed not known does not refuse a stop");
+    }
+
+    /// The velocity since the last stop ages with the heading turned (the
+    /// accelerometer's bias no longer cancels against the tilt): 2 m/s known
+    /// to 0.1 m/s refuses a stop on a straight, not after a long winding
+    /// crawl.
+    #[test]
+    fn a_velocity_integrated_through_turns_no_longer_refuses_a_stop() {
+        let mut m = car(2.0, 0.1);
+        m.age_velocity(0.1, true);
+        assert!(m.zero_velocity_nis() > m.p.gate, "{}", m.zero_velocity_nis());
+        // 300 s of driving straight: nothing exposed
+        m.age_velocity(300.0, false);
+        assert_eq!(m.velocity_age_var(), 0.0);
+        // then a half turn held for 60 s: 0.01 g x 2 x 60 s = 11.8 m/s
+        m.q = quat::from_euler(0.0, 0.0, std::f64::consts::PI);
+        m.c = quat::to_matrix(&m.q);
+        m.age_velocity(60.0, false);
+        let s = m.velocity_age_var().sqrt();
+        assert!((s - m.p.accel_bias_g * G * 120.0).abs() < 1e-6, "{s}");
+        assert!(m.zero_velocity_nis() < m.p.gate, "{}", m.zero_velocity_nis());
+    }
+
+    /// A forward speed beyond the band is held to it, one-sided: 80 m/s
+    /// comes down towards 60, -12 up towards -5, 30 is left alone; with the
+    /// bound off (0) nothing changes.
+    #[test]
+    fn a_forward_speed_no_car_has_is_held_to_the_band() {
+        let omega = [0.0; 3];
+        // an integrated speed, known to 5 m/s
+        let run = |u: f64, fwd: f64| {
+            let mut m = car(u, 5.0);
+            m.p.max_forward_speed = fwd;
+            m.dx = [0.0; N];
+            m.speed_bound_update(&omega, Gain { tilt: true, heading: true, bias: false, velocity: true });
+            m.inject();
+            m.forward_speed()
+        };
+        assert!(run(80.0, 60.0) < 62.0 && run(80.0, 60.0) > 57.0, "{}", run(80.0, 60.0));
+        assert!(run(-12.0, 60.0) > -6.0 && run(-12.0, 60.0) < -4.0, "{}", run(-12.0, 60.0));
+        assert_eq!(run(30.0, 60.0), run(30.0, 0.0));
+        assert!((run(80.0, 0.0) - 80.0).abs() < 1e-9);
+    }
+
+    /// The velocity's noise follows the car's acceleration: quiet it is
+    /// `q_accel_quiet`, braking at 1 m/s^2 or shaking by 0.1 g RMS it is
+    /// `q_accel`, knocked far more.
+    #[test]
+    fn the_velocity_noise_of_a_quiet_car_is_small() {
+        let m = car(10.0, 0.5);
+        let still = Accum { t: 1.0, n: 1, accel: [0.0, 0.0, -1.0], accel2: 1.0, dv: [0.0, 0.0, -G], ..Accum::default() };
+        assert!((m.velocity_noise(&still) - m.p.q_accel_quiet).abs() < 1e-12);
+        let braking = Accum { dv: [-1.0, 0.0, -G], ..still.clone() };
+        assert!((m.velocity_noise(&braking) - m.p.q_accel).abs() < 1e-12);
+        // two samples at ±0.1 g about gravity
+        let shaking = Accum { n: 2, accel: [0.0, 0.0, -2.0], accel2: 2.0 * (1.0 + 0.01), dv: [0.0, 0.0, -G], ..still.clone() };
+        assert!((m.velocity_noise(&shaking) - m.p.q_accel).abs() < 1e-12);
+        assert!(m.p.q_accel_quiet < 0.02 * m.p.q_accel);
+        // a knock, ±2 g about gravity within the tick: no car's change of
+        // speed, the velocity's noise far above `q_accel`
+        let knock = Accum { n: 2, accel: [0.0, 0.0, -2.0], accel2: 2.0 * (1.0 + 4.0), dv: [0.0, 0.0, -G], ..still.clone() };
+        assert!(m.velocity_noise(&knock) > 100.0 * m.p.q_accel, "{}", m.velocity_noise(&knock));
+    }
+}
