@@ -19,6 +19,8 @@ pub struct RunData {
     pub truth: Vec<TruthRow>,
     /// True additive gyro bias per sample, deg/s.
     pub bias: Vec<[f64; 3]>,
+    /// The truth's speed per sample, m/s (road scenarios: `vehicle.csv`).
+    pub speed: Option<Vec<f64>>,
     /// The run's own calibrated config (thermal curve known to +-thermal_error).
     pub unit_config: Option<Config>,
     source: Source,
@@ -42,7 +44,12 @@ impl RunData {
             return Err(format!("{}: bias.csv and truth.csv differ in length", dir.display()));
         }
         let unit_config = Config::load(&dir.join("config.toml")).ok();
-        Ok(RunData { info, model, truth, bias, unit_config, source: Source::Log(dir.join("imu.log")) })
+        let vehicle = dir.join("vehicle.csv");
+        let speed = if vehicle.is_file() { Some(sim::read_vehicle_speed(&vehicle)?) } else { None };
+        if speed.as_ref().is_some_and(|v| v.len() != truth.len()) {
+            return Err(format!("{}: vehicle.csv and truth.csv differ in length", dir.display()));
+        }
+        Ok(RunData { info, model, truth, bias, speed, unit_config, source: Source::Log(dir.join("imu.log")) })
     }
 
     /// Simulate in memory.
@@ -51,7 +58,12 @@ impl RunData {
         let mut truth = Vec::new();
         let mut bias = Vec::new();
         let mut frames = Vec::new();
+        let road = run.spec.road.is_some();
+        let mut speed = Vec::new();
         for b in sim::bus(&run, o.seed) {
+            if road {
+                speed.push(b.truth.speed);
+            }
             let tr = &b.truth;
             truth.push(TruthRow { t: tr.t, att: [tr.roll, tr.pitch, tr.yaw], rate: tr.rate, f: tr.f, temp: tr.temp });
             bias.push(b.measured.bias);
@@ -59,7 +71,14 @@ impl RunData {
         }
         let unit_config = Some(Config::parse(&run.config_toml, "simulated unit").map_err(|e| e.to_string())?);
         let dbc = run.wheel.is_some().then_some(sim::wheel::EXAMPLE_DBC);
-        Ok(RunData { info: run.info, model: run.model, truth, bias, unit_config, source: Source::Frames(frames, dbc) })
+        let speed = road.then_some(speed);
+        Ok(RunData { info: run.info, model: run.model, truth, bias, speed, unit_config, source: Source::Frames(frames, dbc) })
+    }
+
+    /// [`super::still_moving_s`] of `est` against the run's truth speed; none
+    /// without a vehicle truth.
+    pub fn still_moving(&self, est: &[Estimate]) -> Option<f64> {
+        self.speed.as_ref().map(|v| super::still_moving_s(est, v, 1.0 / self.info.rate_hz))
     }
 
     /// Run the estimator over the run's input.

@@ -2,7 +2,7 @@
 //! scored, the tables printed, and with `--out` report.json and the two SVG
 //! plots written.
 
-use super::{cases, errors, oracle, plot, run_row, run_table, score, write_reports, EvalOptions, Metrics, RunData, Window};
+use super::{cases, errors, oracle, plot, run_row, run_table, score, write_reports, EvalOptions, Metrics, RunData, Window, MOVING_MPS};
 use crate::config::Config;
 use crate::estimator::Estimate;
 use crate::sim::ScenarioInfo;
@@ -57,8 +57,9 @@ pub fn evaluate_dir_with(cfg: &Config, dir: &Path, o: &EvalOptions, config_path:
         if est.len() != data.truth.len() {
             return Err(format!("{} estimates for {} truth rows", est.len(), data.truth.len()));
         }
-        metrics.push(score(&name, &data, &est, ms, o.score_from));
-        man.push(score(&name, &data, &est, ms, win.start));
+        let still = data.still_moving(&est);
+        metrics.push(Metrics { still_moving_s: still, ..score(&name, &data, &est, ms, o.score_from) });
+        man.push(Metrics { still_moving_s: still, ..score(&name, &data, &est, ms, win.start) });
         if first.is_none() || name.starts_with("default") {
             let errs = errors(&data, &est);
             first = Some((est, errs));
@@ -68,7 +69,7 @@ pub fn evaluate_dir_with(cfg: &Config, dir: &Path, o: &EvalOptions, config_path:
     let (orc, _) = oracle(&data, &est, win.start);
     let t = run_table();
     out += &format!(
-        "-- scored over t = {:.1}..{:.1} s (from --score-from to the end); time per mode over the whole run\n",
+        "-- scored over t = {:.1}..{:.1} s (from --score-from to the end); time per mode and still moving (standstill declared while the truth moves faster than {MOVING_MPS} m/s) over the whole run\n",
         o.score_from, win.end
     );
     out += &t.header();

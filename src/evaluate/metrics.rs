@@ -3,7 +3,7 @@
 //! that the manoeuvres-only scores and the oracle floor cover.
 
 use super::RunData;
-use crate::estimator::Estimate;
+use crate::estimator::{flags, Estimate};
 use crate::sim::model::GyroInput;
 use crate::sim::motion::{c_nb, wrap180};
 use crate::sim::vibration;
@@ -25,6 +25,20 @@ pub struct Metrics {
     pub samples: usize,
     /// Time of the largest roll or pitch error, s.
     pub t_max_tilt: f64,
+    /// Seconds of the whole run during which the estimate declared a
+    /// standstill while the truth moved faster than [`MOVING_MPS`]; none
+    /// without a vehicle truth (or for a peer, which declares none).
+    pub still_moving_s: Option<f64>,
+}
+
+/// The truth's |speed| above which a declared standstill is wrong, m/s.
+pub const MOVING_MPS: f64 = 0.5;
+
+/// Seconds (one sample period per sample) during which `est` declares a
+/// standstill ([`flags::STANDSTILL`]) while |speed| > [`MOVING_MPS`].
+pub fn still_moving_s(est: &[Estimate], speed: &[f64], period: f64) -> f64 {
+    let n = est.iter().zip(speed).filter(|(e, v)| e.flags & flags::STANDSTILL != 0 && v.abs() > MOVING_MPS).count();
+    n as f64 * period
 }
 
 impl Metrics {
@@ -179,5 +193,29 @@ impl Window {
              (paper and vehicle: 350 s); the manoeuvres-only scores and the oracle floor are left out (use a longer --duration)",
             self.end
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn still_moving_counts_standstill_while_the_truth_moves() {
+        // 100 Hz: 1.5 s standstill at 2 m/s, 1 s standstill at 0.3 m/s,
+        // 2 s moving at 2 m/s without a standstill.
+        let mut est = Vec::new();
+        let mut speed = Vec::new();
+        for (n, v, still) in [(150, 2.0, true), (100, 0.3, true), (200, -2.0, false)] {
+            for _ in 0..n {
+                est.push(Estimate { flags: if still { flags::STANDSTILL } else { 0 }, ..Default::default() });
+                speed.push(v);
+            }
+        }
+        assert!((still_moving_s(&est, &speed, 0.01) - 1.5).abs() < 1e-9);
+        // reversing counts too: |speed|
+        speed[0] = -2.0;
+        assert!((still_moving_s(&est, &speed, 0.01) - 1.5).abs() < 1e-9);
+        assert_eq!(still_moving_s(&est, &vec![0.0; est.len()], 0.01), 0.0);
     }
 }

@@ -34,7 +34,7 @@ mod table;
 
 pub use data::RunData;
 pub use dir::{evaluate_dir, evaluate_dir_with};
-pub use metrics::{errors, oracle, score, Metrics, Window};
+pub use metrics::{errors, oracle, score, still_moving_s, Metrics, Window, MOVING_MPS};
 pub use seeds::{evaluate_seeds, evaluate_seeds_with, median, SeedRow};
 pub use table::{run_row, run_table, Table};
 

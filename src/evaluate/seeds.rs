@@ -3,7 +3,7 @@
 //! summary over the seeds (worst, median, ratio to the oracle floor) and
 //! with `--out` report.json.
 
-use super::{cases, oracle, score, table::num, write_reports, EvalOptions, Metrics, RunData, Table, Window};
+use super::{cases, oracle, score, table::num, write_reports, EvalOptions, Metrics, RunData, Table, Window, MOVING_MPS};
 use crate::config::Config;
 use crate::sim::{self, SimOptions};
 use serde::Serialize;
@@ -61,6 +61,7 @@ pub fn evaluate_seeds_with(
         ("rms yaw", "deg"),
         ("rms bias", "deg/s"),
         ("t max tilt", "s"),
+        ("still moving", "s"),
         ("man max roll", "deg"),
         ("man max pitch", "deg"),
         ("man rms yaw", "deg"),
@@ -85,7 +86,8 @@ pub fn evaluate_seeds_with(
             }
             let head = format!(
                 "per seed: max roll/pitch, rms yaw, rms bias and the time of the largest tilt error over t = {:.1}..{:.1} s; \
-                 'man' over {}; 'oracle' the oracle floor there\n{}",
+                 'still moving' the seconds of the whole run with a standstill declared while the truth moves faster than {MOVING_MPS} m/s \
+                 ('-': no vehicle truth); 'man' over {}; 'oracle' the oracle floor there\n{}",
                 o.score_from,
                 w.end,
                 if w.is_empty() {
@@ -116,8 +118,9 @@ pub fn evaluate_seeds_with(
             if orc.is_none() {
                 orc = Some(oracle(&data, &est, w.start).0);
             }
-            ms.push(score(name, &data, &est, mode_s, o.score_from));
-            man.push(score(name, &data, &est, mode_s, w.start));
+            let still = data.still_moving(&est);
+            ms.push(Metrics { still_moving_s: still, ..score(name, &data, &est, mode_s, o.score_from) });
+            man.push(Metrics { still_moving_s: still, ..score(name, &data, &est, mode_s, w.start) });
         }
         let orc = orc.ok_or("no case")?;
         for (m, mm) in ms.iter().zip(&man) {
@@ -131,6 +134,7 @@ pub fn evaluate_seeds_with(
                 num(m.rms_err[2], 3),
                 num(brms, 5),
                 num(m.t_max_tilt, 1),
+                num(m.still_moving_s.unwrap_or(f64::NAN), 2),
                 gone(mm.max_err[0]),
                 gone(mm.max_err[1]),
                 gone(mm.rms_err[2]),
@@ -174,6 +178,7 @@ pub fn evaluate_seeds_with(
         ("worst rms yaw", "deg"),
         ("seeds <= 2 deg", "of total"),
         ("worst seed", ""),
+        ("worst still moving", "s"),
     ])
     .width(0, 22);
     let mut windows = vec![(format!("scored over t = {:.1}..{:.1} s", o.score_from, w.end), false)];
@@ -201,6 +206,7 @@ pub fn evaluate_seeds_with(
                 num(wy, 3),
                 format!("{ok}/{}", rows.len()),
                 worst.to_string(),
+                num(per.iter().filter_map(|m| m.still_moving_s).fold(f64::NAN, f64::max), 2),
             ]);
         }
     }

@@ -75,6 +75,7 @@ pub fn run_table() -> Table {
         ("run in fusion", "s"),
         ("run in blend", "s"),
         ("run gyro only", "s"),
+        ("still moving", "s"),
     ])
     .width(0, 22)
 }
@@ -85,10 +86,11 @@ pub fn run_row(t: &Table, m: &Metrics, oracle: bool) -> String {
     let mut c = vec![m.name.clone()];
     c.extend(m.max_err.iter().chain(&m.rms_err).map(|v| num(*v, 3)));
     if oracle {
-        c.extend(["-"; 4].map(String::from));
+        c.extend(["-"; 5].map(String::from));
     } else {
         c.push(num(brms, 5));
         c.extend(m.mode_seconds.iter().map(|v| num(*v, 1)));
+        c.push(num(m.still_moving_s.unwrap_or(f64::NAN), 2));
     }
     t.line(&c)
 }

@@ -660,6 +660,16 @@ pub fn read_bias(path: &Path) -> Result<Vec<(f64, [f64; 3])>, String> {
         .collect()
 }
 
+/// Read vehicle.csv: the truth's speed per sample, m/s (negative reversing).
+pub fn read_vehicle_speed(path: &Path) -> Result<Vec<f64>, String> {
+    let text = std::fs::read_to_string(path).map_err(io_err(path))?;
+    let mut lines = text.lines();
+    if lines.next().map(|h| h.trim()) != Some(VEHICLE_HEADER.trim()) {
+        return Err(format!("{}: header must be {}", path.display(), VEHICLE_HEADER.trim()));
+    }
+    lines.enumerate().filter(|(_, l)| !l.trim().is_empty()).map(|(i, l)| parse_floats::<6>(l, path, i + 2).map(|v| v[1])).collect()
+}
+
 /// Read scenario.toml.
 pub fn read_info(path: &Path) -> Result<ScenarioInfo, String> {
     let text = std::fs::read_to_string(path).map_err(io_err(path))?;
