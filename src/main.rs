@@ -195,5 +195,5 @@ fn cmd_calibrate(
     plot: Option<PathBuf>,
 ) -> Result<(), String> {
     let cfg = load_config(&config)?;
-    gyrocomp::calibrate::cli(&cfg, &input, order, write.as_deref(), plot.as_deref())
+    gyrocomp::calibrate::cli(&cfg, config.as_deref(), &input, order, write.as_deref(), plot.as_deref())
 }

@@ -652,13 +652,32 @@ pub fn plot_files(dir: &Path, runs: usize) -> Vec<PathBuf> {
 }
 
 /// `gyrocomp calibrate`: fit, print the report, write `--write` and `--plot`
-/// outputs (refusing an output that is an input, before anything is read).
-pub fn cli(cfg: &Config, inputs: &[PathBuf], order: u8, write: Option<&Path>, plot: Option<&Path>) -> Result<(), String> {
+/// outputs (refusing an output that is an input, the config among them, and
+/// a log given twice, before anything is read).
+pub fn cli(
+    cfg: &Config,
+    config: Option<&Path>,
+    inputs: &[PathBuf],
+    order: u8,
+    write: Option<&Path>,
+    plot: Option<&Path>,
+) -> Result<(), String> {
     let mut outs: Vec<PathBuf> = write.iter().map(|p| p.to_path_buf()).collect();
     if let Some(d) = plot {
         outs.extend(plot_files(d, inputs.len()));
     }
-    let ins: Vec<&Path> = inputs.iter().map(|p| p.as_path()).collect();
+    for (k, a) in inputs.iter().enumerate() {
+        for b in &inputs[k + 1..] {
+            if crate::outfile::same_file(a, b) {
+                return Err(format!(
+                    "--input {} and {} are the same log: each chamber run is one power cycle, given once",
+                    a.display(),
+                    b.display()
+                ));
+            }
+        }
+    }
+    let ins: Vec<&Path> = inputs.iter().map(|p| p.as_path()).chain(config).collect();
     let os: Vec<&Path> = outs.iter().map(|p| p.as_path()).collect();
     crate::outfile::refuse_inputs_as_outputs(&ins, &os)?;
     let cal = calibrate_files(cfg, inputs, order).map_err(|e| e.to_string())?;

@@ -1,0 +1,211 @@
+//! Issue 38's commands, run against the release binary as a careful attacker
+//! would: outputs of every kind of path (a FIFO, a device node of the
+//! test's own, `/dev/stdout`, a symbolic link, a directory, a name at the
+//! length limit), a run stopped by a signal, `calibrate --write` aimed at
+//! its own config. Nothing may be lost, replaced or left behind. The host's
+//! `/dev` is never written: device nodes are made in a temporary directory
+//! (as root; otherwise that case is skipped, said so).
+
+mod common;
+use common::bin;
+use std::ffi::CString;
+use std::fs;
+use std::io::Write;
+use std::os::unix::ffi::OsStrExt;
+use std::os::unix::fs::FileTypeExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+const ROAD: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/road-40s.log");
+
+fn gyrocomp(args: &[&str]) -> Output {
+    Command::new(bin()).args(args).output().unwrap()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// The names in `dir`, sorted.
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+    v.sort();
+    v
+}
+
+/// The replay of the road log to a regular file: what every other kind of
+/// output must receive.
+fn reference_output(dir: &Path) -> Vec<u8> {
+    let p = dir.join("reference.log");
+    let o = gyrocomp(&["replay", "--input", ROAD, "--output", s(&p)]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let b = fs::read(&p).unwrap();
+    fs::remove_file(&p).unwrap();
+    b
+}
+
+fn mkfifo(p: &Path) {
+    let c = CString::new(p.as_os_str().as_bytes()).unwrap();
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0, "mkfifo {}", p.display());
+}
+
+#[test]
+fn replay_to_a_fifo_writes_it_in_place_and_it_stays_a_fifo() {
+    let d = tempfile::tempdir().unwrap();
+    let want = reference_output(d.path());
+    let fifo = d.path().join("out.fifo");
+    mkfifo(&fifo);
+    let reader = {
+        let p = fifo.clone();
+        std::thread::spawn(move || fs::read(p).unwrap())
+    };
+    let o = gyrocomp(&["replay", "--input", ROAD, "--output", s(&fifo)]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(reader.join().unwrap() == want, "the FIFO's reader did not receive the replay's bytes");
+    assert!(fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo(), "the FIFO was replaced by a file");
+    assert_eq!(names(d.path()), ["out.fifo"]);
+}
+
+#[test]
+fn replay_to_a_device_node_never_replaces_it_and_a_full_one_is_an_error() {
+    let d = tempfile::tempdir().unwrap();
+    let null = d.path().join("null");
+    let full = d.path().join("full");
+    let mk = |p: &Path, minor| {
+        let c = CString::new(p.as_os_str().as_bytes()).unwrap();
+        unsafe { libc::mknod(c.as_ptr(), libc::S_IFCHR | 0o666, libc::makedev(1, minor)) == 0 }
+    };
+    if !(mk(&null, 3) && mk(&full, 7)) {
+        eprintln!("skipped: cannot make device nodes here (not root); the host's /dev is never written by a test");
+        return;
+    }
+    let o = gyrocomp(&["replay", "--input", ROAD, "--output", s(&null), "--csv", s(&null)]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let o = gyrocomp(&["replay", "--input", ROAD, "--output", s(&full)]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o.stderr));
+    let err = text(&o.stderr);
+    assert!(err.contains(s(&full)) && err.contains("No space left on device"), "{err}");
+    for p in [&null, &full] {
+        assert!(fs::symlink_metadata(p).unwrap().file_type().is_char_device(), "{} was replaced by a file", p.display());
+    }
+    assert_eq!(names(d.path()), ["full", "null"]);
+}
+
+#[test]
+fn replay_to_dev_stdout_writes_the_process_own_stdout() {
+    let d = tempfile::tempdir().unwrap();
+    let want = reference_output(d.path());
+    let o = gyrocomp(&["replay", "--input", ROAD, "--output", "/dev/stdout"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(o.stdout == want, "stdout is not the replay's log ({} bytes, want {})", o.stdout.len(), want.len());
+    // a shell's `>>` appends: stdout redirected to a file opened for appending
+    let out = d.path().join("appended.log");
+    fs::write(&out, b"kept\n").unwrap();
+    let f = fs::OpenOptions::new().append(true).open(&out).unwrap();
+    let st = Command::new(bin()).args(["replay", "--input", ROAD, "--output", "/dev/stdout"]).stdout(f).status().unwrap();
+    assert!(st.success());
+    assert!(fs::read(&out).unwrap() == [b"kept\n".as_slice(), &want].concat(), "the appended file lost its head");
+}
+
+#[test]
+fn replay_through_a_symlink_keeps_the_link_and_writes_its_target() {
+    let d = tempfile::tempdir().unwrap();
+    let want = reference_output(d.path());
+    fs::create_dir(d.path().join("real")).unwrap();
+    let target = d.path().join("real/out.log");
+    fs::write(&target, b"old").unwrap();
+    let link = d.path().join("link.log");
+    std::os::unix::fs::symlink("real/out.log", &link).unwrap();
+    let o = gyrocomp(&["replay", "--input", ROAD, "--output", s(&link)]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(fs::symlink_metadata(&link).unwrap().file_type().is_symlink(), "the link was replaced by a file");
+    assert!(fs::read(&target).unwrap() == want);
+    assert_eq!(names(&d.path().join("real")), ["out.log"]);
+}
+
+#[test]
+fn an_output_that_is_a_directory_is_refused_and_leaves_nothing() {
+    let d = tempfile::tempdir().unwrap();
+    let sub = d.path().join("sub");
+    fs::create_dir(&sub).unwrap();
+    let o = gyrocomp(&["replay", "--input", ROAD, "--output", s(&sub)]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = text(&o.stderr);
+    assert!(err.contains(s(&sub)) && err.contains("is a directory"), "{err}");
+    assert_eq!(names(d.path()), ["sub"]);
+    assert!(names(&sub).is_empty());
+}
+
+#[test]
+fn an_output_name_at_the_length_limit_is_written() {
+    let d = tempfile::tempdir().unwrap();
+    let want = reference_output(d.path());
+    let p = d.path().join(format!("{}.log", "x".repeat(246)));
+    let o = gyrocomp(&["replay", "--input", ROAD, "--output", s(&p)]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(fs::read(&p).unwrap() == want);
+    assert_eq!(names(d.path()).len(), 1);
+}
+
+/// Replay reading a FIFO that the test feeds and then holds open: the
+/// output's temporary file exists while it waits; SIGINT, SIGTERM or SIGHUP
+/// end it, by that signal, with the temporary file gone and the old output
+/// as it was.
+#[test]
+fn a_replay_stopped_by_a_signal_leaves_no_temporary_file() {
+    let head: Vec<u8> = fs::read(ROAD).unwrap().split(|b| *b == b'\n').take(400).flat_map(|l| [l, b"\n"].concat()).collect();
+    for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+        let d = tempfile::tempdir().unwrap();
+        let fifo = d.path().join("in.fifo");
+        mkfifo(&fifo);
+        let out = d.path().join("out.log");
+        fs::write(&out, b"previous run").unwrap();
+        let mut child =
+            Command::new(bin()).args(["replay", "--input", s(&fifo), "--output", s(&out)]).stderr(Stdio::piped()).spawn().unwrap();
+        let mut w = fs::OpenOptions::new().write(true).open(&fifo).unwrap();
+        w.write_all(&head).unwrap();
+        let t0 = Instant::now();
+        while names(d.path()).len() < 3 {
+            assert!(t0.elapsed() < Duration::from_secs(20), "no temporary file appeared: {:?}", names(d.path()));
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        assert!(names(d.path()).iter().any(|n| n.starts_with(".out.log.tmp-")), "{:?}", names(d.path()));
+        unsafe { libc::kill(child.id() as i32, sig) };
+        let st = child.wait().unwrap();
+        drop(w);
+        use std::os::unix::process::ExitStatusExt;
+        assert_eq!(st.signal(), Some(sig), "replay did not end by signal {sig}: {st:?}");
+        assert_eq!(names(d.path()), ["in.fifo", "out.log"], "signal {sig}");
+        assert_eq!(fs::read(&out).unwrap(), b"previous run");
+    }
+}
+
+/// `calibrate --write` aimed at its own `--config`, directly or through a
+/// link, is refused before anything is read (it replaced the user's config
+/// with the [thermal] snippet); a log given twice is refused too.
+#[test]
+fn calibrate_never_writes_over_its_config_and_takes_a_run_once() {
+    let d = tempfile::tempdir().unwrap();
+    let cfg = d.path().join("config.toml");
+    let body = "[input]\nprofile = \"adis16448\"\n[thermal]\nt0 = 25.0\n";
+    fs::write(&cfg, body).unwrap();
+    let link = d.path().join("link.toml");
+    std::os::unix::fs::symlink(&cfg, &link).unwrap();
+    let run: PathBuf = d.path().join("run.log");
+    fs::copy(ROAD, &run).unwrap();
+    for w in [&cfg, &link] {
+        let o = gyrocomp(&["calibrate", "--config", s(&cfg), "--input", s(&run), "--write", s(w)]);
+        assert_eq!(o.status.code(), Some(1), "{}", text(&o.stdout));
+        assert!(text(&o.stderr).contains("refusing to overwrite an input"), "{}", text(&o.stderr));
+        assert_eq!(fs::read_to_string(&cfg).unwrap(), body);
+    }
+    let o = gyrocomp(&["calibrate", "--input", s(&run), s(&run)]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o.stderr).contains("are the same log"), "{}", text(&o.stderr));
+    assert_eq!(names(d.path()), ["config.toml", "link.toml", "run.log"]);
+}
