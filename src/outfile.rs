@@ -212,12 +212,20 @@ mod signals {
     const SLOTS: usize = 64;
     static TABLE: [AtomicPtr<libc::c_char>; SLOTS] = [const { AtomicPtr::new(std::ptr::null_mut()) }; SLOTS];
 
+    /// Directories to remove (after the files: a staging directory whose
+    /// files are being written).
+    static DIRS: [AtomicPtr<libc::c_char>; 8] = [const { AtomicPtr::new(std::ptr::null_mut()) }; 8];
+
     extern "C" fn on_signal(sig: libc::c_int) {
-        for s in &TABLE {
-            let p = s.swap(std::ptr::null_mut(), Ordering::SeqCst);
-            if !p.is_null() {
-                // SAFETY: p is a leaked, NUL-terminated CString never freed.
-                unsafe { libc::unlink(p) };
+        for (table, remove) in
+            [(&TABLE[..], libc::unlink as unsafe extern "C" fn(*const libc::c_char) -> libc::c_int), (&DIRS[..], libc::rmdir)]
+        {
+            for s in table {
+                let p = s.swap(std::ptr::null_mut(), Ordering::SeqCst);
+                if !p.is_null() {
+                    // SAFETY: p is a leaked, NUL-terminated CString never freed.
+                    unsafe { remove(p) };
+                }
             }
         }
         // SAFETY: restore the default action and re-raise, so the exit
@@ -251,9 +259,24 @@ mod signals {
     /// Put `p` in the table (None when the table is full: the file is then
     /// removed on drop only).
     pub(super) fn register(p: &Path) -> Option<usize> {
+        register_in(&TABLE, p)
+    }
+
+    /// Put the directory `p` in the table of directories.
+    pub(super) fn register_dir(p: &Path) -> Option<usize> {
+        register_in(&DIRS, p)
+    }
+
+    pub(super) fn unregister_dir(slot: Option<usize>) {
+        if let Some(k) = slot {
+            DIRS[k].store(std::ptr::null_mut(), Ordering::SeqCst);
+        }
+    }
+
+    fn register_in(table: &[AtomicPtr<libc::c_char>], p: &Path) -> Option<usize> {
         install();
         let c = CString::new(p.as_os_str().as_bytes()).ok()?.into_raw();
-        for (k, s) in TABLE.iter().enumerate() {
+        for (k, s) in table.iter().enumerate() {
             if s.compare_exchange(std::ptr::null_mut(), c, Ordering::SeqCst, Ordering::SeqCst).is_ok() {
                 return Some(k);
             }
@@ -267,6 +290,22 @@ mod signals {
         if let Some(k) = slot {
             TABLE[k].store(std::ptr::null_mut(), Ordering::SeqCst);
         }
+    }
+}
+
+/// A staging directory removed (when empty) by SIGINT, SIGTERM or SIGHUP,
+/// after the temporary files being written in it; dropping the guard takes
+/// it off the list (the directory's owner removes it otherwise).
+pub struct DirGuard(Option<usize>);
+
+/// Remove `dir` on a signal while the guard lives; see [`DirGuard`].
+pub fn remove_dir_on_signal(dir: &Path) -> DirGuard {
+    DirGuard(signals::register_dir(dir))
+}
+
+impl Drop for DirGuard {
+    fn drop(&mut self) {
+        signals::unregister_dir(self.0);
     }
 }
 

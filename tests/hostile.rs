@@ -209,3 +209,34 @@ fn calibrate_never_writes_over_its_config_and_takes_a_run_once() {
     assert!(text(&o.stderr).contains("are the same log"), "{}", text(&o.stderr));
     assert_eq!(names(d.path()), ["config.toml", "link.toml", "run.log"]);
 }
+
+/// `simulate` stopped by SIGTERM while it writes leaves `--out` as it was:
+/// no staging directory, no temporary files (it left gigabytes in
+/// `.simulate-*`).
+#[test]
+fn a_simulate_stopped_by_a_signal_leaves_its_out_directory_as_it_was() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("s");
+    let mut child = Command::new(bin())
+        .args(["simulate", "--scenario", "vehicle", "--duration", "3000", "--out", s(&out)])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    let writing = || {
+        fs::read_dir(&out)
+            .ok()
+            .and_then(|mut r| r.next())
+            .and_then(|e| e.ok())
+            .is_some_and(|e| fs::read_dir(e.path()).is_ok_and(|r| r.count() >= 3))
+    };
+    while !writing() {
+        assert!(t0.elapsed() < Duration::from_secs(20), "simulate never started writing");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+    let st = child.wait().unwrap();
+    use std::os::unix::process::ExitStatusExt;
+    assert_eq!(st.signal(), Some(libc::SIGTERM), "{st:?}");
+    assert!(names(&out).is_empty(), "left in --out: {:?}", names(&out));
+}

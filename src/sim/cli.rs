@@ -193,6 +193,7 @@ fn simulate_into(a: &SimulateArgs, o: &SimOptions, inputs: &[&Path]) -> Result<(
         .prefix(".simulate-")
         .tempdir_in(&a.out)
         .map_err(|e| format!("cannot create a temporary directory in {}: {e}", a.out.display()))?;
+    let _on_signal = crate::outfile::remove_dir_on_signal(stage.path());
     let f = simulate(o, stage.path())?;
     let mut names: Vec<_> = std::fs::read_dir(stage.path())
         .and_then(|d| d.map(|e| e.map(|e| e.file_name())).collect::<Result<Vec<_>, _>>())
