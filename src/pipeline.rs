@@ -70,6 +70,9 @@ pub struct Report {
     /// The configured sample rate and the one the frame timestamps show
     /// (Hz), once 5 s of samples are in.
     pub rate: Option<(f64, f64)>,
+    /// Restarts from the prior after the filter's state went non-finite
+    /// (flagged `RESYNC`; 0 with a config inside its ranges).
+    pub nonfinite_restarts: u64,
 }
 
 impl Report {
@@ -81,6 +84,12 @@ impl Report {
     /// Human lines (for the replay summary).
     pub fn render(&self) -> String {
         let mut s = String::new();
+        if self.nonfinite_restarts > 0 {
+            s += &format!(
+                "the filter's state went non-finite {} times: each restarted it from the prior (flagged FlagResync; nothing non-finite was published); a config beyond its physical ranges, or a sample beyond its part's\n",
+                self.nonfinite_restarts
+            );
+        }
         if let Some(c) = &self.mekf {
             s += &format!(
                 "standstill {:.1} s, re-levels {}, updates refused by the gate {:.1} s (longest run {:.1} s), velocity re-acquired {} times, restarts from the prior {}\n",
@@ -245,6 +254,7 @@ impl Pipeline {
             power_on: self.estimator.power_on_speed(),
             speed: self.speed_counts(),
             rate: (span >= 5.0).then(|| (1.0 / self.period, self.steps as f64 / span)),
+            nonfinite_restarts: self.estimator.nonfinite_restarts(),
         }
     }
 

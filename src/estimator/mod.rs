@@ -77,6 +77,7 @@ pub mod flags {
     pub const MAG_DISTURBED: u16 = 1 << 12;
     /// The vehicle's own speed was fused.
     pub const SPEED_AIDED: u16 = 1 << 13;
+    // The status word holds 14 flags (bits 2-15 of EST_STATUS): all taken.
 }
 
 /// What the estimator says about one sample. Angles deg, rates deg/s, all in
@@ -204,6 +205,8 @@ pub struct Estimator {
     /// The default filter's power-on speed hypotheses while they run.
     hypotheses: Option<Box<SpeedHypotheses>>,
     power_on: Option<PowerOnSpeed>,
+    /// Restarts from the prior after a non-finite state (flagged `RESYNC`).
+    nonfinite_restarts: u64,
 }
 
 /// The power-on speed hypotheses' outcome (`hypotheses`), for the summary
@@ -318,6 +321,7 @@ impl Estimator {
             init_bias_sigma: cfg.init_bias_sigma(),
             hypotheses: None,
             power_on: None,
+            nonfinite_restarts: 0,
         }
     }
 
@@ -565,16 +569,7 @@ impl Estimator {
             }
         }
 
-        if !finite {
-            // Cannot happen with finite input; never let a NaN reach the bus.
-            self.started = false;
-            let keep_t = self.t;
-            self.start(&inp);
-            self.t = keep_t;
-            fl |= flags::RESYNC;
-        }
-
-        Estimate {
+        let est = Estimate {
             cnt: s.cnt,
             t_us: s.t_us,
             t,
@@ -587,7 +582,54 @@ impl Estimator {
             temp: s.temp,
             flags: fl,
             ratio,
+        };
+        if finite && est.is_finite() {
+            est
+        } else {
+            self.restart_nonfinite(&inp, est)
         }
+    }
+
+    /// The state or the output went non-finite (a filter driven beyond its
+    /// numbers: it cannot happen with a config inside its ranges and finite
+    /// input): restart from the prior on this sample, count it, and publish
+    /// the restarted filter's attitude and bias, any value still non-finite
+    /// as 0, flagged `RESYNC` (the attitude was not integrated over it).
+    fn restart_nonfinite(&mut self, inp: &StepIn, est: Estimate) -> Estimate {
+        self.nonfinite_restarts += 1;
+        self.started = false;
+        let keep_t = self.t;
+        self.start(inp);
+        self.t = keep_t;
+        let (att, bias) = match &self.filter {
+            Filter::Paper(p) => (p.attitude(), p.bias_deg()),
+            Filter::Mekf(m) => (m.euler(), m.bias.map(|b| b * R2D)),
+        };
+        let f = |v: f64| if v.is_finite() { v } else { 0.0 };
+        let bias = bias.map(f);
+        Estimate {
+            roll: f(att[0] * R2D),
+            pitch: f(att[1] * R2D),
+            yaw: f(att[2] * R2D),
+            rate: [f(inp.gyro[0] - bias[0]), f(inp.gyro[1] - bias[1]), f(inp.gyro[2] - bias[2])],
+            bias,
+            temp: f(est.temp),
+            ratio: f(est.ratio),
+            flags: est.flags | flags::RESYNC,
+            ..est
+        }
+    }
+
+    /// Restarts from the prior after a non-finite state since power-on.
+    pub fn nonfinite_restarts(&self) -> u64 {
+        self.nonfinite_restarts
+    }
+}
+
+impl Estimate {
+    /// Whether every published number is finite.
+    pub fn is_finite(&self) -> bool {
+        [self.t, self.roll, self.pitch, self.yaw, self.temp, self.ratio].iter().chain(&self.rate).chain(&self.bias).all(|v| v.is_finite())
     }
 }
 

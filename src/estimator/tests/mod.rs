@@ -170,3 +170,37 @@ fn long_gap_is_a_resync_not_an_integration() {
 
 // the default filter (mekf)
 mod mekf;
+
+/// A filter driven beyond its numbers (every `[ekf]` sigma 1e-300, which no
+/// config inside its ranges can ask for; a sample of 1e300 deg/s or NaN) never
+/// publishes a non-finite value: it restarts from the prior, flagged
+/// `RESYNC` and counted (replay published NaN attitude on 8192 of 8193 rows).
+#[test]
+fn a_non_finite_state_restarts_from_the_prior_and_is_never_published() {
+    let mut paper = cfg("");
+    paper.ekf.gyro_noise = 1e-300;
+    paper.ekf.bias_walk = 1e-300;
+    paper.ekf.tilt_sigma_deg = 1e-300;
+    paper.ekf.yaw_sigma_deg = 1e-300;
+    paper.ekf.init_angle_sigma_deg = 1e-300;
+    paper.ekf.init_bias_sigma = Some(1e-300);
+    let mekf = cfg("[estimator]\nmode = \"mekf\"");
+    // a NaN no decoder makes, to reach the guard from the input side too
+    for (name, c, bad) in [("paper, sigmas 1e-300, a NaN sample", paper, f64::NAN), ("mekf, a 1e300 deg/s sample", mekf, 1e300)] {
+        let mut e = Estimator::new(&c);
+        let mut restarted = 0;
+        for k in 0..(204.8 * 30.0) as u32 {
+            let mut s = rest(k as u16, [0.3, -0.2, 0.1], 0.0, 25.0);
+            if k % 1000 == 999 {
+                s.gyro = [bad, -bad, bad];
+            }
+            let est = e.step(&s);
+            assert!(est.is_finite(), "{name}: sample {k} published {est:?}");
+            if e.nonfinite_restarts() > restarted {
+                assert!(est.flags & flags::RESYNC != 0, "{name}: a restart not flagged at sample {k}");
+                restarted = e.nonfinite_restarts();
+            }
+        }
+        assert!(restarted > 0, "{name}: the state never went non-finite: the test tests nothing");
+    }
+}
