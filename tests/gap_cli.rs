@@ -151,6 +151,27 @@ fn bad_input_is_named() {
         .unwrap();
     let e = fails(&mut gap(&log, &truth, &p.join("bad2.toml"), &out));
     assert!(e.contains("bad2.toml") && e.contains("scale"), "{e}");
+    // a model beyond its physical ranges (the simulator and the fit overflowed:
+    // [noise] gyro_white = 1e300 panicked in check 3): file, line and key
+    for (text, key, line) in [
+        ("[gyro]\neffects = []\n[noise]\ngyro_white = 1e300\n", "noise.gyro_white", "line 4"),
+        ("[gyro]\neffects = []\n[noise]\ngyro_bias_walk = 1e300\n", "noise.gyro_bias_walk", "line 4"),
+        ("[gyro]\neffects = [\"turn_on_bias\"]\n[gyro.turn_on_bias]\nbias = [1e300, 0, 0]\n", "gyro.turn_on_bias.bias", "line 4"),
+    ] {
+        std::fs::write(p.join("huge.toml"), text).unwrap();
+        let e = fails(&mut gap(&log, &truth, &p.join("huge.toml"), &out));
+        assert!(e.contains("huge.toml") && e.contains(key) && e.contains(line) && e.contains("must be within"), "{e}");
+        let o = exe()
+            .args(["simulate", "--scenario", "static", "--duration", "20", "--model"])
+            .arg(p.join("huge.toml"))
+            .arg("--out")
+            .arg(p.join("s2"))
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{e}");
+        assert!(e.contains(key) && e.contains(line), "{e}");
+    }
     // malformed truth CSV: file and line
     let mut t = std::fs::read_to_string(&truth).unwrap();
     let at = t.match_indices('\n').nth(5).unwrap().0;

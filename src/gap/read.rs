@@ -174,7 +174,7 @@ pub fn parse_base(text: &str) -> Result<SensorModel, String> {
             return Err(format!("gyro.effects: {} is listed twice", e.name()));
         }
     }
-    fixed.validate().map_err(|(k, msg)| format!("{k}: {msg}"))?;
+    fixed.validate().map_err(|(k, msg)| crate::sim::model::where_written(text, &k, &msg))?;
     Ok(m)
 }
 

@@ -208,82 +208,103 @@ pub struct GyroInput {
     pub t_on: f64,
 }
 
+/// Physical ranges of the model's numbers, wide around what MEMS parts
+/// show (the ADIS16448: turn-on bias 3 deg/s 1-sigma, thermal slope about
+/// 0.01 deg/s/K, g-sensitivity 0.01 deg/s/g); beyond them a model is a typo,
+/// and the simulator would saturate every register or overflow.
+pub const BIAS_MAX: f64 = 100.0;
+/// Temperatures a part works at, deg C (automotive -40..125 with margin).
+pub const TEMP_RANGE: (f64, f64) = (-60.0, 150.0);
+/// Thermal slope, deg/s/K.
+pub const P1_MAX: f64 = 1.0;
+/// Thermal curvature, deg/s/K^2.
+pub const P2_MAX: f64 = 0.1;
+/// Bias per temperature rate, deg/s per K/s.
+pub const THERMAL_RATE_MAX: f64 = 100.0;
+/// Warm-up time constants, s.
+pub const TAU_MIN_S: f64 = 0.01;
+pub const TAU_MAX_S: f64 = 36000.0;
+/// g-sensitivity, deg/s/g.
+pub const G_SENS_MAX: f64 = 10.0;
+/// Scale-factor error (fraction) and misalignment (rad).
+pub const SCALE_MAX: f64 = 0.5;
+/// Time delay, s.
+pub const DELAY_MAX_S: f64 = 1.0;
+
+/// Every value of `v` finite and within `lo..=hi` (`unit` for the message).
+fn within(key: &str, v: &[f64], lo: f64, hi: f64, unit: &str) -> Result<(), (String, String)> {
+    match v.iter().find(|x| !(x.is_finite() && (lo..=hi).contains(*x))) {
+        None => Ok(()),
+        Some(x) => Err((key.to_string(), format!("must be within {lo}..{hi} {unit}, got {x}"))),
+    }
+}
+
 impl GyroModel {
     pub fn has(&self, e: Effect) -> bool {
         self.effects.contains(&e)
     }
 
     /// Check that every listed effect has its coefficients and that they are
-    /// sane; returns (key, message) naming the offending key.
+    /// inside their physical ranges (the `*_MAX` constants: a MEMS gyro's
+    /// errors with a wide margin, so a typo of 1e300 never reaches the
+    /// simulator); returns (key, message) naming the offending key.
     pub fn validate(&self) -> Result<(), (String, String)> {
-        let fin = |key: &str, v: &[f64]| -> Result<(), (String, String)> {
-            if v.iter().all(|x| x.is_finite()) {
-                Ok(())
-            } else {
-                Err((key.to_string(), "must be finite numbers".to_string()))
-            }
-        };
         for (i, e) in self.effects.iter().enumerate() {
             if self.effects[..i].contains(e) {
                 return Err(("gyro.effects".into(), format!("{} is listed twice", e.name())));
             }
             let key = format!("gyro.{}", e.name());
+            let k = |field: &str| format!("{key}.{field}");
             let missing = || Err((key.clone(), format!("{} is listed in gyro.effects but [{}] is missing", e.name(), key)));
             match e {
                 Effect::TurnOnBias => match &self.turn_on_bias {
-                    Some(c) => fin(&format!("{key}.bias"), &c.bias)?,
+                    Some(c) => within(&k("bias"), &c.bias, -BIAS_MAX, BIAS_MAX, "deg/s")?,
                     None => return missing(),
                 },
                 Effect::ThermalLinear => match &self.thermal_linear {
                     Some(c) => {
-                        fin(&format!("{key}.t0"), &[c.t0])?;
-                        fin(&format!("{key}.p1"), &c.p1)?
+                        within(&k("t0"), &[c.t0], TEMP_RANGE.0, TEMP_RANGE.1, "deg C")?;
+                        within(&k("p1"), &c.p1, -P1_MAX, P1_MAX, "deg/s/K")?
                     }
                     None => return missing(),
                 },
                 Effect::ThermalQuadratic => match &self.thermal_quadratic {
                     Some(c) => {
-                        fin(&format!("{key}.t0"), &[c.t0])?;
-                        fin(&format!("{key}.p2"), &c.p2)?
+                        within(&k("t0"), &[c.t0], TEMP_RANGE.0, TEMP_RANGE.1, "deg C")?;
+                        within(&k("p2"), &c.p2, -P2_MAX, P2_MAX, "deg/s/K^2")?
                     }
                     None => return missing(),
                 },
                 Effect::ThermalRate => match &self.thermal_rate {
-                    Some(c) => fin(&format!("{key}.k"), &c.k)?,
+                    Some(c) => within(&k("k"), &c.k, -THERMAL_RATE_MAX, THERMAL_RATE_MAX, "deg/s per K/s")?,
                     None => return missing(),
                 },
                 Effect::WarmupTransient => match &self.warmup_transient {
                     Some(c) => {
-                        fin(&format!("{key}.amplitude"), &c.amplitude)?;
-                        if !(c.tau_s.is_finite() && c.tau_s > 0.0) {
-                            return Err((format!("{key}.tau_s"), format!("must be > 0, got {}", c.tau_s)));
-                        }
+                        within(&k("amplitude"), &c.amplitude, -BIAS_MAX, BIAS_MAX, "deg/s")?;
+                        within(&k("tau_s"), &[c.tau_s], TAU_MIN_S, TAU_MAX_S, "s")?;
                     }
                     None => return missing(),
                 },
                 Effect::GSensitivity => match &self.g_sensitivity {
-                    Some(c) => fin(&format!("{key}.g"), c.g.as_flattened())?,
+                    Some(c) => within(&k("g"), c.g.as_flattened(), -G_SENS_MAX, G_SENS_MAX, "deg/s/g")?,
                     None => return missing(),
                 },
                 Effect::ScaleFactor => match &self.scale_factor {
-                    Some(c) => fin(&format!("{key}.k"), &c.k)?,
+                    Some(c) => within(&k("k"), &c.k, -SCALE_MAX, SCALE_MAX, "(fraction)")?,
                     None => return missing(),
                 },
                 Effect::Misalignment => match &self.misalignment {
                     Some(c) => {
-                        fin(&format!("{key}.m"), c.m.as_flattened())?;
+                        within(&k("m"), c.m.as_flattened(), -SCALE_MAX, SCALE_MAX, "rad")?;
                         if (0..3).any(|i| c.m[i][i] != 0.0) {
-                            return Err((format!("{key}.m"), "the diagonal must be 0 (that is scale_factor)".into()));
+                            return Err((k("m"), "the diagonal must be 0 (that is scale_factor)".into()));
                         }
                     }
                     None => return missing(),
                 },
                 Effect::TimeDelay => match &self.time_delay {
-                    Some(c) => {
-                        if !(c.delay_s.is_finite() && c.delay_s >= 0.0) {
-                            return Err((format!("{key}.delay_s"), format!("must be >= 0, got {}", c.delay_s)));
-                        }
-                    }
+                    Some(c) => within(&k("delay_s"), &[c.delay_s], 0.0, DELAY_MAX_S, "s")?,
                     None => return missing(),
                 },
             }
@@ -469,7 +490,7 @@ impl SensorModel {
     /// Parse and validate model text; errors name the key.
     pub fn parse(text: &str) -> Result<SensorModel, String> {
         let m: SensorModel = toml::from_str(text).map_err(|e| e.to_string())?;
-        m.validate().map_err(|(k, msg)| format!("{k}: {msg}"))?;
+        m.validate().map_err(|(k, msg)| where_written(text, &k, &msg))?;
         Ok(m)
     }
 
@@ -485,25 +506,30 @@ impl SensorModel {
     pub fn validate(&self) -> Result<(), (String, String)> {
         self.gyro.validate()?;
         let n = &self.noise;
-        for (k, v) in [
-            ("noise.gyro_white", n.gyro_white),
-            ("noise.gyro_bias_walk", n.gyro_bias_walk),
-            ("noise.accel_white", n.accel_white),
-            ("noise.magn_white", n.magn_white),
-            ("noise.temp_white", n.temp_white),
+        for (k, v, hi, unit) in [
+            ("noise.gyro_white", n.gyro_white, 10.0, "deg/s/sqrt(Hz)"),
+            ("noise.gyro_bias_walk", n.gyro_bias_walk, 1.0, "deg/s/sqrt(s)"),
+            ("noise.accel_white", n.accel_white, 1.0, "g/sqrt(Hz)"),
+            ("noise.magn_white", n.magn_white, 10.0, "gauss"),
+            ("noise.temp_white", n.temp_white, 10.0, "deg C"),
         ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err((k.into(), format!("must be >= 0, got {v}")));
-            }
+            within(k, &[v], 0.0, hi, unit)?;
         }
-        let all = self.accel.bias.iter().chain(&self.magn.bias).chain(&self.magn.field_ned).chain(&self.vibration.amplitude);
-        if !all.clone().all(|v| v.is_finite()) {
-            return Err(("accel/magn/vibration".into(), "must be finite numbers".into()));
-        }
-        if self.vibration.freq_hz.iter().any(|f| !(f.is_finite() && *f > 0.0)) {
-            return Err(("vibration.freq_hz".into(), "must be > 0".into()));
-        }
+        within("accel.bias", &self.accel.bias, -2.0, 2.0, "g")?;
+        within("magn.bias", &self.magn.bias, -10.0, 10.0, "gauss")?;
+        within("magn.field_ned", &self.magn.field_ned, -2.0, 2.0, "gauss")?;
+        within("vibration.amplitude", &self.vibration.amplitude, -20.0, 20.0, "g")?;
+        within("vibration.freq_hz", &self.vibration.freq_hz, 0.01, 10000.0, "Hz")?;
         Ok(())
+    }
+}
+
+/// `key: msg` with where `key` is written in `text` (line and column), or
+/// that it is not written (its default is meant).
+pub fn where_written(text: &str, key: &str, msg: &str) -> String {
+    match crate::config::locate(text, key) {
+        Some(at) => format!("line {}, column {}: {key}: {msg}", at.line, at.column),
+        None => format!("{key} (not in the file: its default): {msg}"),
     }
 }
 
