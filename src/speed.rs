@@ -15,6 +15,9 @@
 //! (a range `[0|0]` means "none", as in the DBC convention), or a speed that
 //! is physically implausible (|v| > [`MAX_PLAUSIBLE_MS`]).
 //!
+//! A message longer than 8 bytes (a classic CAN frame's most) is refused at
+//! load time: frames of CAN FD are never taken as speed frames.
+//!
 //! Pure: no I/O besides reading the DBC file at load time, no tokio.
 
 use crate::config::SpeedConfig;
@@ -47,6 +50,8 @@ pub enum SpeedError {
     NoSignal { path: String, message: String, signal: String, known: String },
     #[error("{path}: signal {message}.{signal}: unit {unit:?} is not a speed unit gyrocomp knows (km/h, kph, kmh, m/s, mps, mph)")]
     Unit { path: String, message: String, signal: String, unit: String },
+    #[error("{path}: message {message} is {size} bytes long (its DLC); a classic CAN frame carries 0 to 8 and gyrocomp reads no CAN FD speed frames, so every frame would drop as wrong_dlc")]
+    Length { path: String, message: String, size: u64 },
     #[error("{path}: signal {message}.{signal}: {why}")]
     Unsupported { path: String, message: String, signal: String, why: String },
 }
@@ -244,6 +249,10 @@ impl SpeedDecoder {
             MessageId::Standard(x) => (u32::from(x), false),
             MessageId::Extended(x) => (x, true),
         };
+        // classic CAN only: the pipeline takes no FD frame as a speed frame
+        if msg.size > 8 {
+            return Err(SpeedError::Length { path: path.clone(), message: msg.name.clone(), size: msg.size });
+        }
         let dlc = msg.size as usize;
         let mut sigs = Vec::with_capacity(cfg.signals.len());
         let mut units = Vec::with_capacity(cfg.signals.len());
@@ -501,6 +510,15 @@ BO_ 2147484000 EXT: 2 X
         let text = text.replace("8|16@1+", "15|16@0+");
         let e = SpeedDecoder::from_dbc_text(&text, "s.dbc", &cfg("SHORT", &["S"])).unwrap_err().to_string();
         assert!(e.contains("outside the message"), "{e}");
+    }
+
+    #[test]
+    fn a_message_longer_than_a_classic_can_frame_is_refused() {
+        let text = "VERSION \"\"\n\nNS_ :\n\nBS_:\n\nBU_: X\n\nBO_ 5 LONG: 99 X\n SG_ S : 0|16@1+ (1,0) [0|0] \"m/s\" X\n";
+        let e = SpeedDecoder::from_dbc_text(text, "l.dbc", &cfg("LONG", &["S"])).unwrap_err().to_string();
+        assert!(e.contains("l.dbc") && e.contains("message LONG") && e.contains("99 bytes") && e.contains("0 to 8"), "{e}");
+        let d = SpeedDecoder::from_dbc_text(&text.replace(": 99 X", ": 8 X"), "l.dbc", &cfg("LONG", &["S"])).unwrap();
+        assert_eq!(d.dlc(), 8);
     }
 
     #[test]

@@ -7,7 +7,7 @@
 //!
 //! The steps, one file each: `schema.rs` the sections and their defaults,
 //! `load.rs` reading and parsing with key-and-line errors and the speed
-//! source, `validate.rs` the checks of every value, `effective.rs` the
+//! source, `validate/` the checks of every value (a physical range per numeric key, one file per group of sections), `effective.rs` the
 //! resolved profile and the printed effective configuration.
 
 mod effective;
@@ -20,6 +20,8 @@ pub use schema::{
     AutoBool, CanConfig, Config, DaemonConfig, EkfConfig, EstimatorConfig, InputConfig, MekfConfig, Mode, MountingConfig, OutputConfig,
     RestConfig, SpeedConfig, SwitchingConfig, ThermalConfig,
 };
+/// The ranges of `[input]`'s rate and scales (what `validate` accepts).
+pub use validate::{ACCEL_LSB, GYRO_LSB, MAGN_LSB, RATE_HZ, TEMP_LSB};
 
 /// Tests: the error `Config::parse` gives for `text`.
 #[cfg(test)]

@@ -3,7 +3,40 @@
 //! Every key is optional; a missing one takes the default written here.
 
 use crate::adis::InputIds;
+use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize};
+
+/// A TOML array of exactly `N` numbers; any other length is an error naming
+/// `key` and the length wanted. serde's own `[f64; N]` takes the first `N`
+/// values and drops the rest without a word (the toml deserializer does not
+/// check for leftovers), so `rotation = [0, 0, 0, 45]` would load as
+/// `[0, 0, 0]`.
+fn exact<'de, D: Deserializer<'de>, const N: usize>(d: D, key: &str, what: &str) -> Result<[f64; N], D::Error> {
+    let v = Vec::<f64>::deserialize(d)?;
+    <[f64; N]>::try_from(v.as_slice())
+        .map_err(|_| D::Error::custom(format!("{key}: expected an array of {N} numbers ({what}), got {} values", v.len())))
+}
+
+/// One `deserialize_with` function per fixed-length key: [`exact`] with its name.
+macro_rules! exact_fn {
+    ($($f:ident: $n:literal, $key:literal, $what:literal;)*) => {$(
+        fn $f<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; $n], D::Error> {
+            exact(d, $key, $what)
+        }
+    )*};
+}
+
+exact_fn! {
+    exact_inner: 2, "switching.inner", "[lo, hi]";
+    exact_outer: 2, "switching.outer", "[lo, hi]";
+    exact_p1: 3, "thermal.p1", "one per axis x, y, z";
+    exact_p2: 3, "thermal.p2", "one per axis x, y, z";
+    exact_p3: 3, "thermal.p3", "one per axis x, y, z";
+    exact_p4: 3, "thermal.p4", "one per axis x, y, z";
+    exact_learn_max_dev: 3, "thermal.learn_max_dev", "one per axis x, y, z";
+    exact_rotation: 3, "mounting.rotation", "[roll, pitch, yaw]";
+    exact_lever_arm: 3, "mounting.lever_arm", "[x, y, z]";
+}
 
 /// `[input.ids]`: every key optional, the others keep their defaults.
 fn partial_ids<'de, D: Deserializer<'de>>(d: D) -> Result<InputIds, D::Error> {
@@ -227,8 +260,10 @@ impl Default for EkfConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct SwitchingConfig {
     /// Inner band on |a|/g0: full fusion with bias learning.
+    #[serde(deserialize_with = "exact_inner")]
     pub inner: [f64; 2],
     /// Outer band on |a|/g0: between inner and outer a weighted blend; outside gyro only.
+    #[serde(deserialize_with = "exact_outer")]
     pub outer: [f64; 2],
     /// Acceleration-change criterion: no fusion when |slope of a| > jerk_ratio * mean|a| per second.
     pub jerk_ratio: f64,
@@ -260,14 +295,18 @@ pub struct ThermalConfig {
     /// Reference temperature of the curve, deg C. Default 25.
     pub t0: f64,
     /// Slope per axis, deg/s per deg C. Default 0.
+    #[serde(deserialize_with = "exact_p1")]
     pub p1: [f64; 3],
     /// Bias at t0 per axis, deg/s. Default 0.
+    #[serde(deserialize_with = "exact_p2")]
     pub p2: [f64; 3],
     /// Polynomial order, 1 (default, linear as in the paper), 2 or 3.
     pub order: u8,
     /// Quadratic coefficient per axis, deg/s per (deg C)^2; must be 0 unless order >= 2. Default 0.
+    #[serde(deserialize_with = "exact_p3")]
     pub p3: [f64; 3],
     /// Cubic coefficient per axis, deg/s per (deg C)^3; must be 0 unless order = 3. Default 0.
+    #[serde(deserialize_with = "exact_p4")]
     pub p4: [f64; 3],
     /// Lower edge of the calibrated temperature range, deg C. Default: none (no clamp below).
     pub t_min: Option<f64>,
@@ -284,6 +323,7 @@ pub struct ThermalConfig {
     pub learn_min_spread: f64,
     /// Largest change of the learned slope from the configured `p1`, per
     /// axis, deg/s per deg C. Default 0.01 on every axis.
+    #[serde(deserialize_with = "exact_learn_max_dev")]
     pub learn_max_dev: [f64; 3],
 }
 
@@ -522,9 +562,11 @@ pub struct MountingConfig {
     /// `[roll, pitch, yaw]`, deg. Every sample is rotated into the vehicle
     /// frame (FRD) before the estimator; outputs are in the vehicle frame.
     /// Default `[0, 0, 0]` (sensor axes = vehicle axes).
+    #[serde(deserialize_with = "exact_rotation")]
     pub rotation: [f64; 3],
     /// Position of the sensor from the centre of the rear axle, vehicle
     /// axes (x forward, y right, z down), m. Default `[0, 0, 0]`.
+    #[serde(deserialize_with = "exact_lever_arm")]
     pub lever_arm: [f64; 3],
 }
 

@@ -4,6 +4,7 @@
 use super::csv::ImuCsv;
 use crate::adis::{builtin_profile, InputIds, Profile, RawSample};
 use crate::candump::{parse_line, write_line, LineReader};
+use crate::config::{ACCEL_LSB, GYRO_LSB, MAGN_LSB, TEMP_LSB};
 use std::io::{BufRead, Write};
 
 /// Auto scales leave this much headroom above the data's largest |value|.
@@ -16,7 +17,8 @@ const FULL: f64 = i16::MAX as f64;
 pub enum ScaleSource {
     /// The profile's LSB covers the data.
     Profile,
-    /// The finest LSB (two significant digits) whose range covers the data with `HEADROOM`.
+    /// The finest LSB (two significant digits) whose range covers the data
+    /// with `HEADROOM`, and no finer than the config's range of the key.
     Auto,
     /// No data on the channel: the profile's LSB is kept.
     Unused,
@@ -75,7 +77,9 @@ pub fn choose_scales(data: &ImuCsv, profile: Option<&str>) -> Result<Scales, Str
         if profile.is_some() && lsbs[k] > 0.0 && max[k] <= FULL * lsbs[k] {
             source[k] = ScaleSource::Profile;
         } else {
-            chosen[k] = auto_lsb(max[k]);
+            // never finer than the config accepts (a channel that barely moves)
+            let floor = [GYRO_LSB.0, ACCEL_LSB.0, MAGN_LSB.0, TEMP_LSB.0][k];
+            chosen[k] = auto_lsb(max[k]).max(floor);
             source[k] = ScaleSource::Auto;
         }
     }
