@@ -10,6 +10,7 @@
 //! source, `validate/` the checks of every value (a physical range per numeric key, one file per group of sections), `effective.rs` the
 //! resolved profile and the printed effective configuration.
 
+pub mod arrays;
 mod effective;
 mod load;
 mod schema;

@@ -88,6 +88,7 @@ impl Effect {
 #[serde(deny_unknown_fields)]
 pub struct TurnOnBias {
     /// Per axis `[x, y, z]`, deg/s.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub bias: [f64; 3],
 }
 
@@ -99,6 +100,7 @@ pub struct ThermalLinear {
     /// Reference temperature, deg C.
     pub t0: f64,
     /// Per axis `[x, y, z]`, deg/s per deg C.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub p1: [f64; 3],
 }
 
@@ -109,6 +111,7 @@ pub struct ThermalQuadratic {
     /// Reference temperature, deg C.
     pub t0: f64,
     /// Per axis `[x, y, z]`, deg/s per deg C^2.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub p2: [f64; 3],
 }
 
@@ -117,6 +120,7 @@ pub struct ThermalQuadratic {
 #[serde(deny_unknown_fields)]
 pub struct ThermalRate {
     /// Per axis `[x, y, z]`, deg/s per (deg C/s).
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub k: [f64; 3],
 }
 
@@ -125,6 +129,7 @@ pub struct ThermalRate {
 #[serde(deny_unknown_fields)]
 pub struct WarmupTransient {
     /// Per axis `[x, y, z]`, deg/s at power-on.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub amplitude: [f64; 3],
     /// Time constant, s (> 0).
     pub tau_s: f64,
@@ -135,6 +140,7 @@ pub struct WarmupTransient {
 #[serde(deny_unknown_fields)]
 pub struct GSensitivity {
     /// 3x3 matrix, rows = gyro axis, columns = specific-force axis, deg/s per g.
+    #[serde(deserialize_with = "crate::config::arrays::exactly_3x3")]
     pub g: [[f64; 3]; 3],
 }
 
@@ -143,6 +149,7 @@ pub struct GSensitivity {
 #[serde(deny_unknown_fields)]
 pub struct ScaleFactor {
     /// Per axis `[x, y, z]`, dimensionless (0.001 = 1000 ppm).
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub k: [f64; 3],
 }
 
@@ -152,6 +159,7 @@ pub struct ScaleFactor {
 pub struct Misalignment {
     /// 3x3 matrix, rows = gyro axis, columns = true-rate axis, rad (small
     /// angles, dimensionless); the diagonal must be 0.
+    #[serde(deserialize_with = "crate::config::arrays::exactly_3x3")]
     pub m: [[f64; 3]; 3],
 }
 
@@ -398,6 +406,7 @@ fn add(b: &mut [f64; 3], v: &[f64; 3], s: f64) {
 #[serde(deny_unknown_fields, default)]
 pub struct AccelModel {
     /// Per axis `[x, y, z]`, g.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub bias: [f64; 3],
 }
 
@@ -407,8 +416,10 @@ pub struct AccelModel {
 pub struct MagnModel {
     /// Earth field in NED `[north, east, down]` of the magnetic frame, gauss.
     /// Magnetic north is true north in the simulator (declination 0).
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub field_ned: [f64; 3],
     /// Hard-iron bias per axis `[x, y, z]`, gauss.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub bias: [f64; 3],
 }
 
@@ -460,8 +471,10 @@ impl NoiseModel {
 pub struct VibrationModel {
     pub enabled: bool,
     /// Amplitude per axis `[x, y, z]` of each of the two tones, g.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub amplitude: [f64; 3],
     /// Frequencies of the two tones, Hz (engine firing order and a harmonic).
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub freq_hz: [f64; 2],
 }
 
@@ -600,5 +613,16 @@ mod tests {
         assert!(SensorModel::parse(bad).unwrap_err().contains("scale"));
         let bad = "[gyro]\neffects = [\"warp_drive\"]\n";
         assert!(SensorModel::parse(bad).is_err());
+    }
+
+    #[test]
+    fn a_model_value_beyond_its_range_or_an_array_too_long_is_refused_with_its_line() {
+        let e = SensorModel::parse("[gyro]\neffects = [\"turn_on_bias\"]\n[gyro.turn_on_bias]\nbias = [1e300, 0, 0]\n").unwrap_err();
+        assert!(e.contains("line 4") && e.contains("gyro.turn_on_bias.bias") && e.contains("-100..100 deg/s"), "{e}");
+        let e = SensorModel::parse("[gyro]\neffects = [\"turn_on_bias\"]\n[gyro.turn_on_bias]\nbias = [0.1, 0, 0, 45]\n").unwrap_err();
+        assert!(e.contains("line 4") && e.contains("expected an array of 3 numbers, got 4"), "{e}");
+        let e = SensorModel::parse("[gyro]\neffects = []\n[noise]\ngyro_white = 1e300\n").unwrap_err();
+        assert!(e.contains("line 4") && e.contains("noise.gyro_white"), "{e}");
+        SensorModel::parse("[gyro]\neffects = [\"turn_on_bias\"]\n[gyro.turn_on_bias]\nbias = [3.0, -4.5, 0.1]\n").unwrap();
     }
 }

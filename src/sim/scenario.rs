@@ -42,6 +42,7 @@ pub struct Ranges {
     /// Linear thermal slope: the paper's Table 1 p1 per axis
     /// (0.0020, 0.0044, 0.0192 deg/s/C) times a factor uniform in this
     /// range, with a random sign.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub thermal_linear_factor: [f64; 2],
     /// Reference temperature of the thermal terms, deg C.
     pub thermal_t0: f64,
@@ -52,6 +53,7 @@ pub struct Ranges {
     /// Warm-up transient amplitude: uniform in +-this per axis, deg/s.
     pub warmup_amplitude: f64,
     /// Warm-up time constant, s: uniform in this range.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub warmup_tau_s: [f64; 2],
     /// g-sensitivity: each matrix element uniform in +-this, deg/s/g.
     pub g_sensitivity: f64,
@@ -60,6 +62,7 @@ pub struct Ranges {
     /// Misalignment: each off-diagonal element uniform in +-this, rad.
     pub misalignment: f64,
     /// Time delay, s: uniform in this range.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub time_delay_s: [f64; 2],
     /// Accelerometer bias: uniform in +-this per axis, g.
     pub accel_bias: f64,
@@ -69,24 +72,31 @@ pub struct Ranges {
     pub noise: NoiseModel,
     /// Engine/road vibration amplitude per tone on the z axis, g, uniform in
     /// this range (x and y get half); [0, 0] switches vibration off.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub vibration_g: [f64; 2],
     /// Temperature at power-on, deg C: uniform in this range.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub ambient: [f64; 2],
     /// Self-heating rise, deg C: uniform in this range.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub self_heating: [f64; 2],
     /// Self-heating time constant, s: uniform in this range.
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub heating_tau_s: [f64; 2],
     /// Sensor position from the rear-axle centre, vehicle axes (x forward,
     /// y right, z down), m. Only the road kinematics of `urban` model it;
     /// the other scenarios refuse a non-zero value.
     #[serde(default)]
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub lever_arm: [f64; 3],
     /// Road vibration (urban), per tone on the z axis at speed, g: uniform in
     /// this range (x 0.4, y 0.5 of it; six tones of 8-45 Hz; zero at a stop).
     #[serde(default)]
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub road_vibration_g: [f64; 2],
     /// Wheel speeds (urban): latency of the frames, s, uniform in this range.
     #[serde(default)]
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub wheel_latency_s: [f64; 2],
     /// Wheel speeds: tyre scale error, uniform in +-this (dimensionless).
     #[serde(default)]
@@ -97,6 +107,7 @@ pub struct Ranges {
     /// The car body's ride vibration ([`RIDE`]) times a factor uniform in
     /// this range (1: the comma2k19 car's; `smooth` 0-0.3).
     #[serde(default = "one_one")]
+    #[serde(deserialize_with = "crate::config::arrays::exactly")]
     pub ride_scale: [f64; 2],
 }
 
