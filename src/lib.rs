@@ -23,4 +23,5 @@ pub mod reference;
 pub mod replay;
 pub mod sim;
 pub mod speed;
+pub mod textfile;
 pub mod thermal;

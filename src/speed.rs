@@ -113,6 +113,24 @@ pub fn unit_to_ms(unit: &str) -> Option<f64> {
     }
 }
 
+/// A parser's message as a terminal may show it: control characters
+/// escaped, each line cut at 160 characters.
+fn printable(msg: &str) -> String {
+    msg.lines()
+        .map(|l| {
+            let esc: String = l
+                .chars()
+                .flat_map(|c| if c.is_control() && c != '\t' { c.escape_default().collect::<Vec<_>>() } else { vec![c] })
+                .collect();
+            match esc.char_indices().nth(160) {
+                Some((k, _)) => format!("{} ...", &esc[..k]),
+                None => esc,
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
 /// One signal, ready to decode.
 #[derive(Clone, Debug, PartialEq)]
 struct Sig {
@@ -221,6 +239,13 @@ impl SpeedDecoder {
     pub fn from_dbc(path: &Path, cfg: &SpeedConfig) -> Result<SpeedDecoder, SpeedError> {
         let name = path.display().to_string();
         let bytes = std::fs::read(path).map_err(|source| SpeedError::Read { path: name.clone(), source })?;
+        if let Some(at) = bytes.iter().position(|b| b.is_ascii_control() && !b"\t\n\r\x0c".contains(b)) {
+            let line = bytes[..at].iter().filter(|b| **b == b'\n').count() + 1;
+            return Err(SpeedError::Parse {
+                path: name,
+                msg: format!("a binary file, not DBC text (control byte {:#04x} at line {line}, byte {at})", bytes[at]),
+            });
+        }
         let text = match std::str::from_utf8(&bytes) {
             Ok(t) => std::borrow::Cow::Borrowed(t),
             // DBC editors write Windows-1252
@@ -236,7 +261,7 @@ impl SpeedDecoder {
         if !(cfg.scale.is_finite() && cfg.scale > 0.0) {
             return Err(SpeedError::BadScale(cfg.scale));
         }
-        let dbc = Dbc::try_from(text).map_err(|e| SpeedError::Parse { path: path.clone(), msg: e.to_string() })?;
+        let dbc = Dbc::try_from(text).map_err(|e| SpeedError::Parse { path: path.clone(), msg: printable(&e.to_string()) })?;
         let msg = dbc.messages.iter().find(|m| m.name == cfg.message).ok_or_else(|| SpeedError::NoMessage {
             path: path.clone(),
             message: cfg.message.clone(),
@@ -528,5 +553,21 @@ BO_ 2147484000 EXT: 2 X
         }
         assert_eq!(unit_to_ms(""), None);
         assert_eq!(unit_to_ms("rpm"), None);
+    }
+
+    #[test]
+    fn a_binary_file_is_not_dumped_as_dbc_text() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("car.dbc");
+        let mut bytes = b"VERSION \"\"\n".to_vec();
+        bytes.extend((0u8..=255).cycle().take(5000));
+        std::fs::write(&p, &bytes).unwrap();
+        let cfg = SpeedConfig { message: "X".into(), signals: vec!["A".into()], ..Default::default() };
+        let e = SpeedDecoder::from_dbc(&p, &cfg).err().unwrap().to_string();
+        assert!(e.contains("a binary file, not DBC text") && e.contains("line 2"), "{e}");
+        assert!(e.len() < 300 && !e.chars().any(|c| c.is_control() && c != '\n'), "{e}");
+        let long = format!("VERSION \"\"\n{}\u{7f}\n", "x".repeat(5000));
+        let e = SpeedDecoder::from_dbc_text(&long, "t.dbc", &cfg).err().unwrap().to_string();
+        assert!(e.len() < 1500 && !e.contains('\u{7f}'), "{e}");
     }
 }

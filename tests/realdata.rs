@@ -797,3 +797,13 @@ fn the_hand_held_unit_tapped_passed_by_a_magnet_without_magnetometer_or_sampled_
         }
     }
 }
+
+/// `--power-on-at` beyond a recording's end is refused in this command's
+/// words (it spoke of the importer's `--from`).
+#[test]
+fn power_on_at_beyond_the_end_is_named_as_the_user_wrote_it() {
+    let Some(rec) = one_recording("comma2k19-rav4-60s") else { return };
+    let o = gyrocomp::reference::RefOptions { power_on_at: Some(1e9), ..Default::default() };
+    let e = gyrocomp::reference::realdata::evaluate_recording(&rec, &gyrocomp::config::Config::default(), &o).err().unwrap();
+    assert!(e.contains("--power-on-at 1000000000 s") && !e.contains("--from"), "{e}");
+}

@@ -74,7 +74,7 @@ impl Config {
     /// Read, parse and validate a config file.
     pub fn load(path: &Path) -> Result<Config, ConfigError> {
         let p = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io { path: p.clone(), source })?;
+        let text = crate::textfile::read(path).map_err(|source| ConfigError::Io { path: p.clone(), source })?;
         let mut cfg = Config::parse(&text, &p)?;
         // `speed.dbc` relative to the config file's directory
         if cfg.speed.enabled() && Path::new(&cfg.speed.dbc).is_relative() {

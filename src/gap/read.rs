@@ -126,7 +126,7 @@ fn read_meas_log(path: &Path, bytes: &[u8], profile: &Profile) -> Result<Vec<Mea
 
 /// Read `truth.csv` (`t,roll,pitch,yaw,p,q,r,fx,fy,fz[,temp]`); true when it has `temp`.
 pub fn read_truth(path: &Path) -> Result<(Vec<TruthIn>, bool), String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let text = crate::textfile::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
     let mut it = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
     let (_, h) = it.next().ok_or_else(|| format!("{}: empty file", path.display()))?;
     let h: String = h.chars().filter(|c| !c.is_whitespace()).collect();
@@ -159,7 +159,7 @@ pub fn read_truth(path: &Path) -> Result<(Vec<TruthIn>, bool), String> {
 /// The base model: parsed like `sensor.toml`, except that an effect listed
 /// without its table is free (fitted). Errors name the file and the key.
 pub fn load_base(path: &Path) -> Result<SensorModel, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let text = crate::textfile::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
     parse_base(&text).map_err(|e| format!("{}: {e}", path.display()))
 }
 

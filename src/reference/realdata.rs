@@ -53,7 +53,8 @@ pub fn evaluate_recording(dir: &Path, base: &Config, o: &RefOptions) -> Result<R
     let can = dir.join("can.log.gz");
     let can = can.is_file().then_some(can);
     let io = ImportOptions { from: o.power_on_at, ..ImportOptions::default() };
-    let (log, import) = import_to_memory(&dir.join("imu.csv.gz"), can.as_deref(), &io)?;
+    // the import's --from is this command's --power-on-at: say the user's word
+    let (log, import) = import_to_memory(&dir.join("imu.csv.gz"), can.as_deref(), &io).map_err(|e| e.replace("--from", "--power-on-at"))?;
     let config = overlay(base, &import.snippet, &format!("{name} import snippet"))?;
     let d = decode(&log[..], &config, &format!("{name} (imported log)"))?;
     if d.samples.len() != import.samples {

@@ -151,7 +151,7 @@ impl SimulateArgs {
             o.model = Some(SensorModel::load(p)?);
         }
         if let Some(p) = &self.ranges {
-            o.ranges = Some(std::fs::read_to_string(p).map_err(|e| format!("cannot read {}: {e}", p.display()))?);
+            o.ranges = Some(crate::textfile::read(p).map_err(|e| format!("cannot read {}: {e}", p.display()))?);
         }
         Ok(o)
     }

@@ -508,7 +508,7 @@ impl SensorModel {
     }
 
     pub fn load(path: &std::path::Path) -> Result<SensorModel, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        let text = crate::textfile::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
         SensorModel::parse(&text).map_err(|e| format!("{}: {e}", path.display()))
     }
 

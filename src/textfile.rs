@@ -1,0 +1,42 @@
+//! Text inputs read whole, with an error that says where the text stops
+//! being UTF-8 (std's "stream did not contain valid UTF-8" names neither the
+//! line nor the column, and callers add the file).
+
+use std::io;
+use std::path::Path;
+
+/// The file as a string; a file that is not UTF-8 is an `InvalidData` error
+/// naming the line, column and byte where it stops being text.
+pub fn read(path: &Path) -> io::Result<String> {
+    let bytes = std::fs::read(path)?;
+    String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        io::Error::new(io::ErrorKind::InvalidData, not_text(e.as_bytes(), at))
+    })
+}
+
+/// "not UTF-8 text: line L, column C (byte 0xNN)" for `bytes` invalid at `at`.
+fn not_text(bytes: &[u8], at: usize) -> String {
+    let before = &bytes[..at];
+    let line = before.iter().filter(|b| **b == b'\n').count() + 1;
+    let start = before.iter().rposition(|b| *b == b'\n').map_or(0, |p| p + 1);
+    let column = String::from_utf8_lossy(&before[start..]).chars().count() + 1;
+    format!("not UTF-8 text: line {line}, column {column} (byte {:#04x}); a binary file or another encoding", bytes[at])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_first_byte_that_is_not_text_is_named() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("c.toml");
+        std::fs::write(&p, b"[input]\nrate_hz = 1\n# caf\xc3\xa9 \xff\n").unwrap();
+        let e = read(&p).unwrap_err();
+        assert_eq!(e.kind(), io::ErrorKind::InvalidData);
+        assert_eq!(e.to_string(), "not UTF-8 text: line 3, column 8 (byte 0xff); a binary file or another encoding");
+        std::fs::write(&p, "ok\n").unwrap();
+        assert_eq!(read(&p).unwrap(), "ok\n");
+    }
+}
