@@ -46,7 +46,15 @@ pub struct Pipeline {
     first_t_us: Option<u64>,
     last_t_us: u64,
     steps: u64,
+    /// Samples whose frame time is before the previous sample's.
+    backwards: u64,
+    /// Any sample seen (for the span of a log too short to check the rate).
+    any: bool,
 }
+
+/// The frame times' span needed before the configured rate is checked
+/// against them, s.
+pub const RATE_CHECK_S: f64 = 5.0;
 
 /// What the pipeline and its estimator did, for the replay summary and the
 /// daemon's status: a user must never see "fusion 0 %" without the reason.
@@ -70,6 +78,11 @@ pub struct Report {
     /// The configured sample rate and the one the frame timestamps show
     /// (Hz), once 5 s of samples are in.
     pub rate: Option<(f64, f64)>,
+    /// The frame times' span since the rate check last started, s (a check
+    /// needs 5 s), None before any sample.
+    pub span_s: Option<f64>,
+    /// Samples whose frame time ran backwards (before the previous sample's).
+    pub time_backwards: u64,
     /// Restarts from the prior after the filter's state went non-finite
     /// (flagged `RESYNC`; 0 with a config inside its ranges).
     pub nonfinite_restarts: u64,
@@ -145,6 +158,17 @@ impl Report {
                 sp.decoded, sp.wrong_dlc, sp.out_of_range, sp.implausible, used
             );
         }
+        if self.time_backwards > 0 {
+            s += &format!(
+                "WARNING: the frame timestamps ran backwards {} times: the log's times are not one clock (logs joined, or a clock set back); dt comes from DATA_CNT and [input] rate_hz, and the rate is checked over the times since the last step back\n",
+                self.time_backwards
+            );
+        }
+        if let Some(span) = self.span_s.filter(|s| *s < RATE_CHECK_S) {
+            s += &format!(
+                "the configured rate was not checked against the frame timestamps: they span {span:.2} s, under the {RATE_CHECK_S} s a check needs\n"
+            );
+        }
         if let Some((c, m)) = self.rate_mismatch() {
             s += &format!("WARNING: the configured rate {c} Hz disagrees with the frame timestamps ({m:.3} Hz) by more than 1 %: dt comes from the configured rate ([input] rate_hz)\n");
         }
@@ -195,6 +219,8 @@ impl Pipeline {
             first_t_us: None,
             last_t_us: 0,
             steps: 0,
+            backwards: 0,
+            any: false,
         }
     }
 
@@ -216,6 +242,12 @@ impl Pipeline {
             Push::Pending => {}
             Push::Dropped(d) => sink.dropped(t_us, d),
             Push::Sample(s) => {
+                if self.any && s.t_us < self.last_t_us {
+                    // the clock went back: the span so far says nothing; start over
+                    self.backwards += 1;
+                    self.first_t_us = None;
+                }
+                self.any = true;
                 if self.first_t_us.is_none() || s.steps == 0 {
                     // (re)start the rate check at the first sample and at a counter restart
                     self.first_t_us = Some(s.t_us);
@@ -253,7 +285,9 @@ impl Pipeline {
             vehicle_axes: self.estimator.mekf().map(|m| m.vehicle_axes()),
             power_on: self.estimator.power_on_speed(),
             speed: self.speed_counts(),
-            rate: (span >= 5.0).then(|| (1.0 / self.period, self.steps as f64 / span)),
+            rate: (span >= RATE_CHECK_S).then(|| (1.0 / self.period, self.steps as f64 / span)),
+            span_s: self.any.then_some(span),
+            time_backwards: self.backwards,
             nonfinite_restarts: self.estimator.nonfinite_restarts(),
         }
     }

@@ -240,3 +240,34 @@ fn a_simulate_stopped_by_a_signal_leaves_its_out_directory_as_it_was() {
     assert_eq!(st.signal(), Some(libc::SIGTERM), "{st:?}");
     assert!(names(&out).is_empty(), "left in --out: {:?}", names(&out));
 }
+
+/// `(seconds.micros)` of a candump line, shifted by `d` s.
+fn shifted(line: &str, d: f64) -> String {
+    let (t, rest) = line.strip_prefix('(').and_then(|l| l.split_once(')')).unwrap();
+    format!("({:.6}){rest}", t.parse::<f64>().unwrap() + d)
+}
+
+/// Frame times that run backwards (two logs joined) are said, not taken
+/// silently (the rate check saturated its span to 0 and said nothing); a
+/// log too short to check the rate against says so.
+#[test]
+fn replay_says_when_the_frame_times_run_backwards_or_are_too_short_to_check() {
+    let d = tempfile::tempdir().unwrap();
+    let road = fs::read_to_string(ROAD).unwrap();
+    let lines: Vec<&str> = road.lines().collect();
+    let back: String =
+        lines[..16000].iter().map(|l| format!("{l}\n")).chain(lines[16000..].iter().map(|l| shifted(l, -30.0) + "\n")).collect();
+    let p = d.path().join("back.log");
+    fs::write(&p, back).unwrap();
+    let csv = d.path().join("o.csv");
+    let o = gyrocomp(&["replay", "--input", s(&p), "--csv", s(&csv)]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(text(&o.stderr).contains("WARNING: the frame timestamps ran backwards 1 times"), "{}", text(&o.stderr));
+    let short: String = lines[..4000].iter().map(|l| format!("{l}\n")).collect();
+    fs::write(&p, short).unwrap();
+    let o = gyrocomp(&["replay", "--input", s(&p), "--csv", s(&csv)]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(text(&o.stderr).contains("was not checked against the frame timestamps: they span 4.88 s"), "{}", text(&o.stderr));
+    let o = gyrocomp(&["replay", "--input", ROAD, "--csv", s(&csv)]);
+    assert!(!text(&o.stderr).contains("ran backwards") && !text(&o.stderr).contains("not checked"), "{}", text(&o.stderr));
+}
