@@ -400,7 +400,7 @@ fn realdata_power_on_at_scores_as_the_recording_cut_by_hand() {
     assert_ne!(later, table(&run(&["evaluate", "--realdata", p(&whole)])), "the option changed nothing");
     let o = run(&["evaluate", "--realdata", p(&whole), "--power-on-at", "500"]);
     let out = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && out.contains("rec") && out.contains("no sample at or after --from 500"), "{out}");
+    assert!(!o.status.success() && out.contains("rec") && out.contains("no sample at or after --power-on-at 500"), "{out}");
     let o = run(&["evaluate", "--input", p(&d.path().join("run")), "--power-on-at", "40"]);
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--realdata"));
 }
