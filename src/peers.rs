@@ -1,4 +1,6 @@
-//! Peer estimators run on the very samples ours sees, for `evaluate --peers`.
+//! Peer estimators run on the very samples ours sees, for `evaluate --peers`
+//! (a recording against its reference, and simulated seeds): VQF here, Fusion
+//! in [`fusion`].
 //!
 //! VQF (D. Laidig, T. Seel, "VQF: Highly accurate IMU orientation estimation
 //! with bias estimation and magnetic disturbance rejection", Information
@@ -17,6 +19,10 @@
 //! T_flu_frd`, whose Z-Y-X Euler angles are comparable with ours. A fixed
 //! world yaw offset does not matter: the evaluation removes each
 //! estimator's yaw offset at the end of the first rest phase.
+
+pub mod fusion;
+
+pub use fusion::run_fusion;
 
 use crate::adis::Sample;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
@@ -85,12 +91,12 @@ pub fn body_down(q: &UnitQuaternion<f64>) -> Vector3<f64> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A body turning through large roll, pitch and yaw without translation:
     /// the exact rates, specific force and field for each sample.
-    fn tumbling(rate: f64, secs: f64) -> (Vec<Sample>, Vec<[f64; 3]>) {
+    pub(crate) fn tumbling(rate: f64, secs: f64) -> (Vec<Sample>, Vec<[f64; 3]>) {
         let n = (rate * secs) as usize;
         let m_ned = Vector3::new(0.2, 0.03, 0.45);
         let mut s = Vec::with_capacity(n);
@@ -125,7 +131,7 @@ mod tests {
         (s, truth)
     }
 
-    fn wrap(d: f64) -> f64 {
+    pub(crate) fn wrap(d: f64) -> f64 {
         (d + 180.0).rem_euclid(360.0) - 180.0
     }
 

@@ -1,5 +1,8 @@
 //! `gyrocomp evaluate --seeds`: the still-moving column, and the peers beside ours.
 
+use gyrocomp::config::Config;
+use gyrocomp::evaluate::{evaluate_seeds, peer_track, score_attitude, EvalOptions, RunData};
+use gyrocomp::sim::SimOptions;
 use std::process::Command;
 
 fn evaluate(args: &[&str]) -> String {
@@ -40,4 +43,96 @@ fn a_scenario_without_vehicle_truth_prints_no_still_moving() {
     let rows = seed_rows(&text, "mekf");
     assert_eq!(rows.len(), 1, "{text}");
     assert_eq!(rows[0][STILL], "-", "{text}");
+}
+
+/// Columns of a per-seed row: max roll, max pitch, rms yaw, rms bias.
+const MAX_ROLL: usize = 2;
+const MAX_PITCH: usize = 3;
+const RMS_YAW: usize = 4;
+const RMS_BIAS: usize = 5;
+
+fn cell(row: &[&str], k: usize) -> f64 {
+    row[k].parse().unwrap_or_else(|_| panic!("column {k} of {row:?} is not a number"))
+}
+
+#[test]
+fn peers_run_beside_ours_on_every_seed_and_in_the_summary() {
+    let text = evaluate(&["--seeds", "1", "--scenario", "smooth", "--duration", "60", "--peers"]);
+    println!("{text}");
+    for case in ["mekf", "vqf", "fusion"] {
+        let rows = seed_rows(&text, case);
+        assert_eq!(rows.len(), 1, "{case}: {text}");
+        let r = &rows[0];
+        for k in [MAX_ROLL, MAX_PITCH, RMS_YAW] {
+            let v = cell(r, k);
+            assert!(v.is_finite() && v >= 0.0, "{case} column {k}: {v}");
+        }
+        // no frame or sign error (tens of degrees); the peers' tilt error is
+        // several degrees here: a turn-on bias of up to 5 deg/s is beyond
+        // VQF's bias clip (2 deg/s) and Fusion's stationary threshold (3 deg/s)
+        let bound = if case == "mekf" { 2.0 } else { 20.0 };
+        assert!(cell(r, MAX_ROLL) < bound && cell(r, MAX_PITCH) < bound, "{case}: {r:?}");
+        if case == "mekf" {
+            assert!(cell(r, RMS_BIAS).is_finite() && r[STILL] != "-", "{r:?}");
+        } else {
+            // the peers declare no standstill and their bias is not scored
+            assert_eq!((r[RMS_BIAS], r[STILL]), ("-", "-"), "{case}: {r:?}");
+        }
+        // the summary: one row per case, in both windows' tables
+        let summary: Vec<&str> = text.lines().filter(|l| l.starts_with(&format!("{case} "))).collect();
+        assert_eq!(summary.len(), 2, "{case}: {text}");
+        let worst_roll: f64 = summary[0].split_whitespace().nth(1).unwrap().parse().unwrap();
+        assert_eq!(worst_roll, cell(r, MAX_ROLL), "{case}: one seed's worst is its max");
+    }
+    // the peers' rows follow ours
+    let order: Vec<&str> =
+        text.lines().filter_map(|l| l.split_whitespace().nth(1)).filter(|c| ["mekf", "vqf", "fusion"].contains(c)).collect();
+    assert_eq!(order, ["mekf", "vqf", "fusion"]);
+}
+
+#[test]
+fn without_peers_no_peer_rows() {
+    let text = evaluate(&["--seeds", "1", "--scenario", "static", "--duration", "20"]);
+    assert!(seed_rows(&text, "vqf").is_empty() && seed_rows(&text, "fusion").is_empty(), "{text}");
+}
+
+#[test]
+fn peers_on_a_simulate_directory_are_refused_by_name() {
+    let out = Command::new(env!("CARGO_BIN_EXE_gyrocomp")).args(["evaluate", "--input", "no-such-dir", "--peers"]).output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--peers") && err.contains("--seeds"), "{err}");
+}
+
+#[test]
+fn the_printed_vqf_row_is_vqf_on_the_samples_ours_decoded() {
+    // a static unit: the truth is level and still, so both peers must hold
+    // the tilt within half a degree, and the printed VQF numbers must be
+    // gyrocomp::peers::run_vqf on the very samples of the run, scored alike
+    let mut so = SimOptions::new("static", 3);
+    so.duration = Some(60.0);
+    let base = Config::default();
+    let o = EvalOptions { score_from: 10.0, ablation: false, out: None, peers: true };
+    let text = evaluate_seeds(&base, &so, 3..=3, &o).unwrap();
+    let data = RunData::simulate(&so).unwrap();
+    let samples = data.samples(&base).unwrap();
+    assert_eq!(samples.len(), data.truth.len());
+    let mut cfg = base.clone();
+    let unit = data.unit_config.as_ref().unwrap();
+    cfg.thermal = unit.thermal.clone();
+    let (_, _, magn) = data.estimates_and_magnetometer(&cfg).unwrap();
+    let period = 1.0 / cfg.profile().rate_hz;
+    for (case, att) in
+        [("vqf", gyrocomp::peers::run_vqf(&samples, period, magn)), ("fusion", gyrocomp::peers::run_fusion(&samples, period, magn))]
+    {
+        let (track, _) = peer_track(&data, &att);
+        let m = score_attitude(case, &data, &track, 10.0);
+        let rows = seed_rows(&text, case);
+        assert_eq!(rows.len(), 1, "{text}");
+        let r = &rows[0];
+        assert_eq!(r[MAX_ROLL], format!("{:.3}", m.max_err[0]), "{case}: {r:?}");
+        assert_eq!(r[MAX_PITCH], format!("{:.3}", m.max_err[1]), "{case}: {r:?}");
+        assert_eq!(r[RMS_YAW], format!("{:.3}", m.rms_err[2]), "{case}: {r:?}");
+        assert!(m.max_err[0] < 0.5 && m.max_err[1] < 0.5, "{case} tilt on a static unit: {:?}", m.max_err);
+    }
 }

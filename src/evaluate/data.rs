@@ -2,7 +2,7 @@
 //! seed simulated in memory (the same frames `simulate` would write), with
 //! its truth and true bias; and the estimator replayed over its input.
 
-use crate::adis::RawFrame;
+use crate::adis::{Assembler, Push, RawFrame, Sample};
 use crate::config::Config;
 use crate::estimator::Estimate;
 use crate::output::OutFrame;
@@ -93,12 +93,58 @@ impl RunData {
         cfg: &Config,
         prepare: impl FnOnce(&mut crate::estimator::Estimator),
     ) -> Result<(Vec<Estimate>, [f64; 3]), String> {
+        self.replay(cfg, prepare).map(|(est, modes, _)| (est, modes))
+    }
+
+    /// [`Self::estimates`], and whether the estimator used the magnetometer
+    /// (configured, and not found absent or implausible in the run), as
+    /// `evaluate --realdata` decides it for the peers: VQF and Fusion fuse
+    /// the magnetometer when ours did.
+    pub fn estimates_and_magnetometer(&self, cfg: &Config) -> Result<(Vec<Estimate>, [f64; 3], bool), String> {
+        let (est, modes, used) = self.replay(cfg, |_| {})?;
+        Ok((est, modes, crate::reference::magnetometer_configured(cfg) && used.unwrap_or(true)))
+    }
+
+    /// The samples the estimator is given, decoded from the run's frames
+    /// with `cfg`'s profile and CAN IDs (the frames of other IDs, the wheel
+    /// speeds, are not samples): the peers' input.
+    pub fn samples(&self, cfg: &Config) -> Result<Vec<Sample>, String> {
+        match &self.source {
+            Source::Log(p) => {
+                let name = p.display().to_string();
+                let f = std::fs::File::open(p).map_err(|e| format!("{name}: {e}"))?;
+                Ok(crate::reference::decode(std::io::BufReader::new(f), cfg, &name)?.samples)
+            }
+            Source::Frames(fr, _) => {
+                let mut asm = Assembler::new(cfg.profile(), cfg.input.ids);
+                let mut out = Vec::with_capacity(self.truth.len());
+                for f in fr {
+                    if let Push::Sample(s) = asm.push(f.t_us, RawFrame::classic(f.id, &f.data)) {
+                        out.push(s);
+                    }
+                }
+                if out.is_empty() {
+                    return Err(format!("simulated run (seed {}): no complete IMU sample in {} frames", self.info.seed, fr.len()));
+                }
+                Ok(out)
+            }
+        }
+    }
+
+    /// Run the estimator over the run's input: the estimates, the seconds
+    /// per mode, and the estimator's magnetometer decision (None: undecided,
+    /// or a mode without one).
+    fn replay(
+        &self,
+        cfg: &Config,
+        prepare: impl FnOnce(&mut crate::estimator::Estimator),
+    ) -> Result<(Vec<Estimate>, [f64; 3], Option<bool>), String> {
         let mut est = Vec::with_capacity(self.truth.len());
         match &self.source {
             Source::Log(p) => {
                 let sum =
                     replay_files(cfg, &ReplayFiles { input: p, output: None, csv: None }, Some(&mut est)).map_err(|e| e.to_string())?;
-                Ok((est, sum.mode_seconds))
+                Ok((est, sum.mode_seconds, sum.report.magnetometer))
             }
             Source::Frames(fr, dbc) => {
                 struct Keep<'a>(&'a mut Vec<Estimate>);
@@ -121,7 +167,7 @@ impl RunData {
                 for f in fr {
                     pipe.push(f.t_us, RawFrame::classic(f.id, &f.data), &mut sink);
                 }
-                Ok((est, pipe.mode_seconds()))
+                Ok((est, pipe.mode_seconds(), pipe.estimator().magnetometer()))
             }
         }
     }

@@ -53,33 +53,104 @@ pub fn errors(data: &RunData, est: &[Estimate]) -> Vec<(f64, [f64; 3])> {
     est.iter().zip(&data.truth).map(|(e, t)| (t.t, [wrap180(e.roll - t.att[0]), e.pitch - t.att[1], wrap180(e.yaw - t.att[2])])).collect()
 }
 
+/// Score one run of an estimator from `from` (s) on: the attitude errors,
+/// the bias errors against the true bias, and the seconds per mode it
+/// reported.
 pub fn score(name: &str, data: &RunData, est: &[Estimate], mode_seconds: [f64; 3], from: f64) -> Metrics {
-    let mut m = Metrics { name: name.into(), mode_seconds, ..Default::default() };
-    let mut sq = [0.0; 3];
+    let att: Vec<[f64; 3]> = est.iter().map(|e| [e.roll, e.pitch, e.yaw]).collect();
+    let mut m = score_attitude(name, data, &att, from);
+    m.mode_seconds = mode_seconds;
     let mut bsq = [0.0; 3];
     for ((e, t), b) in est.iter().zip(&data.truth).zip(&data.bias) {
         if t.t < from {
             continue;
         }
-        let err = [wrap180(e.roll - t.att[0]), e.pitch - t.att[1], wrap180(e.yaw - t.att[2])];
+        for i in 0..3 {
+            let be = e.bias[i] - b[i];
+            m.bias_max[i] = m.bias_max[i].max(be.abs());
+            bsq[i] += be * be;
+        }
+    }
+    let n = m.samples.max(1) as f64;
+    m.bias_rms = bsq.map(|s| (s / n).sqrt());
+    m
+}
+
+/// Score an attitude track (roll, pitch, yaw in deg per sample, in step
+/// with the truth) from `from` (s) on: the attitude errors only; bias and
+/// modes are not a number (a peer's bias is not scored, it has no modes).
+pub fn score_attitude(name: &str, data: &RunData, att: &[[f64; 3]], from: f64) -> Metrics {
+    let mut m =
+        Metrics { name: name.into(), bias_rms: [f64::NAN; 3], bias_max: [f64::NAN; 3], mode_seconds: [f64::NAN; 3], ..Default::default() };
+    let mut sq = [0.0; 3];
+    for (a, t) in att.iter().zip(&data.truth) {
+        if t.t < from {
+            continue;
+        }
+        let err = [wrap180(a[0] - t.att[0]), a[1] - t.att[1], wrap180(a[2] - t.att[2])];
         if err[0].abs().max(err[1].abs()) > m.tilt_max() {
             m.t_max_tilt = t.t;
         }
         for i in 0..3 {
             m.max_err[i] = m.max_err[i].max(err[i].abs());
             sq[i] += err[i] * err[i];
-            let be = e.bias[i] - b[i];
-            m.bias_max[i] = m.bias_max[i].max(be.abs());
-            bsq[i] += be * be;
         }
         m.samples += 1;
     }
     let n = m.samples.max(1) as f64;
-    for i in 0..3 {
-        m.rms_err[i] = (sq[i] / n).sqrt();
-        m.bias_rms[i] = (bsq[i] / n).sqrt();
-    }
+    m.rms_err = sq.map(|s| (s / n).sqrt());
     m
+}
+
+/// Seconds of a run a peer's yaw offset is taken from when the run has no
+/// rest phase at its start (as `evaluate --realdata`'s default `--align-s`).
+pub const PEER_ALIGN_S: f64 = 5.0;
+/// The truth is at rest while every axis of its rate is under this, deg/s,
+/// and its speed (road scenarios) under this, m/s.
+pub const REST_RATE_DPS: f64 = 1e-3;
+pub const REST_SPEED_MPS: f64 = 1e-3;
+
+/// The window a peer's yaw offset is taken from, s: as `evaluate
+/// --realdata` takes it, the first rest phase (here the truth's: from the
+/// first sample while it neither turns nor moves), else the first
+/// [`PEER_ALIGN_S`] s; the offset is the mean yaw error over the last
+/// [`crate::reference::score::YAW_OFFSET_WINDOW_S`] of it.
+pub fn rest_window(data: &RunData) -> (f64, f64) {
+    let tr = &data.truth;
+    let t0 = tr.first().map_or(0.0, |t| t.t);
+    let still = |k: usize| {
+        tr[k].rate.iter().all(|w| w.abs() < REST_RATE_DPS)
+            && data.speed.as_ref().is_none_or(|v| v.get(k).is_some_and(|v| v.abs() < REST_SPEED_MPS))
+    };
+    let n = (0..tr.len()).take_while(|&k| still(k)).count();
+    // a rest phase of a second or more; else the first seconds
+    let t1 = if n > 0 && tr[n - 1].t - t0 >= 1.0 { tr[n - 1].t } else { t0 + PEER_ALIGN_S };
+    (t1 - crate::reference::score::YAW_OFFSET_WINDOW_S, t1)
+}
+
+/// A peer's yaw offset (its yaw minus the truth's, a circular mean over the
+/// `window`, deg; 0 when no sample is in it).
+pub fn yaw_offset(data: &RunData, att: &[[f64; 3]], window: (f64, f64)) -> f64 {
+    let (mut s, mut c) = (0.0, 0.0);
+    for (a, t) in att.iter().zip(&data.truth) {
+        if t.t >= window.0 && t.t <= window.1 {
+            let d = (a[2] - t.att[2]).to_radians();
+            s += d.sin();
+            c += d.cos();
+        }
+    }
+    if s == 0.0 && c == 0.0 {
+        0.0
+    } else {
+        s.atan2(c).to_degrees()
+    }
+}
+
+/// A peer's attitude track with its yaw offset ([`yaw_offset`] over
+/// [`rest_window`]) removed, and the offset (deg).
+pub fn peer_track(data: &RunData, att: &[[f64; 3]]) -> (Vec<[f64; 3]>, f64) {
+    let off = yaw_offset(data, att, rest_window(data));
+    (att.iter().map(|a| [a[0], a[1], wrap180(a[2] - off)]).collect(), off)
 }
 
 /// The oracle floor: the measured gyro (decoded from the estimates:
@@ -199,6 +270,50 @@ impl Window {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::SimOptions;
+
+    fn run(scenario: &str, secs: f64, moving: bool) -> RunData {
+        let mut o = SimOptions::new(scenario, 5);
+        o.duration = Some(secs);
+        o.power_on_moving = moving;
+        RunData::simulate(&o).unwrap()
+    }
+
+    #[test]
+    fn a_peers_yaw_offset_is_taken_at_the_end_of_the_first_rest_phase() {
+        // static: the whole run is at rest; the offset over its last second
+        let d = run("static", 20.0, false);
+        let end = d.truth.last().unwrap().t;
+        assert_eq!(rest_window(&d), (end - 1.0, end));
+        // a parked start: the rest ends where the truth first turns or moves
+        let d = run("smooth", 30.0, false);
+        let (a, b) = rest_window(&d);
+        let k = d.truth.iter().position(|t| t.t > b).unwrap();
+        assert!(b > 1.0 && b < 25.0 && (b - a - 1.0).abs() < 1e-12, "({a}, {b})");
+        let moving =
+            |k: usize| d.truth[k].rate.iter().any(|w| w.abs() >= REST_RATE_DPS) || d.speed.as_ref().unwrap()[k].abs() >= REST_SPEED_MPS;
+        assert!(moving(k) && !moving(k - 1));
+        // started while driving: no rest phase, the first 5 s as realdata's default
+        let d = run("smooth", 30.0, true);
+        assert_eq!(rest_window(&d), (PEER_ALIGN_S - 1.0, PEER_ALIGN_S));
+    }
+
+    #[test]
+    fn a_yaw_offset_is_a_circular_mean_and_is_removed() {
+        let d = run("static", 12.0, false);
+        // a yaw 179.5 then -179.5 deg off the truth: the mean is 180, not 0
+        let att: Vec<[f64; 3]> =
+            d.truth.iter().enumerate().map(|(k, t)| [t.att[0], t.att[1], t.att[2] + if k % 2 == 0 { 179.5 } else { -179.5 }]).collect();
+        let off = yaw_offset(&d, &att, rest_window(&d));
+        assert!((wrap180(off) - 180.0).abs() < 0.01 || (wrap180(off) + 180.0).abs() < 0.01, "{off}");
+        let (track, _) = peer_track(&d, &att);
+        let m = score_attitude("p", &d, &track, 0.0);
+        assert!(m.max_err[2] < 0.51 && m.max_err[0] == 0.0 && m.max_err[1] == 0.0, "{:?}", m.max_err);
+        // a peer's bias and modes are not scored
+        assert!(m.bias_rms.iter().chain(&m.mode_seconds).all(|v| v.is_nan()) && m.still_moving_s.is_none());
+        // no sample in the window: no offset
+        assert_eq!(yaw_offset(&d, &att, (100.0, 101.0)), 0.0);
+    }
 
     #[test]
     fn still_moving_counts_standstill_while_the_truth_moves() {

@@ -10,7 +10,8 @@
 //! Many seeds (`--seeds A..B --scenario NAME`): each seed is simulated in
 //! memory (the same frames `simulate` would write) and replayed through the
 //! same pipeline; the config's thermal curve is replaced by the seed's
-//! calibration (the drawn slope known to +-`thermal_error`).
+//! calibration (the drawn slope known to +-`thermal_error`). With `--peers`
+//! VQF and Fusion run on each seed's decoded samples beside ours.
 //!
 //! Scores start at `score_from_s` (default 10 s: no estimator is asked to be
 //! right at its first sample). The **oracle floor** integrates the measured
@@ -34,8 +35,10 @@ mod table;
 
 pub use data::RunData;
 pub use dir::{evaluate_dir, evaluate_dir_with};
-pub use metrics::{errors, oracle, score, still_moving_s, Metrics, Window, MOVING_MPS};
-pub use seeds::{evaluate_seeds, evaluate_seeds_with, median, SeedRow};
+pub use metrics::{
+    errors, oracle, peer_track, rest_window, score, score_attitude, still_moving_s, yaw_offset, Metrics, Window, MOVING_MPS,
+};
+pub use seeds::{evaluate_seeds, evaluate_seeds_with, median, run_peers, SeedRow, PEERS};
 pub use table::{run_row, run_table, Table};
 
 use crate::config::{Config, Mode};
@@ -70,6 +73,8 @@ pub struct EvalOptions {
     pub score_from: f64,
     pub ablation: bool,
     pub out: Option<PathBuf>,
+    /// With many seeds: VQF and Fusion beside ours ([`seeds::run_peers`]).
+    pub peers: bool,
 }
 
 /// Write the report files: every destination checked first (not an input,
@@ -133,14 +138,17 @@ pub struct EvaluateArgs {
     /// seed N. Required unless --input is given; needs --scenario.
     #[arg(long, value_name = "A..B", requires = "scenario")]
     pub seeds: Option<String>,
-    /// With --seeds: the scenario to simulate (static, chamber, paper, vehicle, urban). Required with --seeds.
+    /// With --seeds: the scenario to simulate (static, chamber, paper,
+    /// vehicle, urban, smooth, crawl). Required with --seeds.
     #[arg(long, value_name = "NAME", requires = "seeds")]
     pub scenario: Option<String>,
-    /// With --seeds, vehicle only: add emergency brakes and swerves of 0.65-0.8 g. Off by default.
+    /// With --seeds: vehicle, add emergency brakes and swerves of 0.65-0.8 g;
+    /// smooth, 800 s of hard driving after 200 s of the smooth drive. Off by
+    /// default.
     #[arg(long, requires = "seeds")]
     pub hard: bool,
     /// With --seeds: the simulated runs start while the car is already
-    /// driving (urban, vehicle, paper). Default: a parked start.
+    /// driving (urban, vehicle, paper, smooth, crawl). Default: a parked start.
     #[arg(long, requires = "seeds")]
     pub power_on_moving: bool,
     /// With --seeds (urban): the estimator uses the car's wheel speeds
@@ -148,8 +156,9 @@ pub struct EvaluateArgs {
     #[arg(long, requires = "seeds")]
     pub speed: bool,
     /// With --seeds: duration of each run, s (> 0). Default: the scenario's
-    /// (static 300, chamber 1800, paper and vehicle 800, urban 400; the
-    /// manoeuvres of paper and vehicle start at 350).
+    /// (static 300, chamber 1800, paper and vehicle 800, urban 400, smooth and
+    /// crawl 600, smooth --hard 1000; the manoeuvres of paper and vehicle start
+    /// at 350).
     #[arg(long, value_name = "S", requires = "seeds", allow_negative_numbers = true, value_parser = crate::sim::cli::positive_seconds)]
     pub duration: Option<f64>,
     /// With --seeds: relative error of the thermal slope the estimator is
@@ -189,7 +198,12 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
         Some(p) => Config::load(p).map_err(|e| e.to_string())?,
         None => Config::default(),
     };
-    let o = EvalOptions { score_from: a.score_from, ablation: a.ablation, out: a.out.clone() };
+    if a.real.peers && a.seeds.is_none() {
+        return Err("--peers runs VQF and Fusion beside ours with --seeds, VQF with --reference or --realdata; \
+                    not on a simulate directory (--input DIR)"
+            .into());
+    }
+    let o = EvalOptions { score_from: a.score_from, ablation: a.ablation, out: a.out.clone(), peers: a.real.peers };
     let text = match (&a.input, &a.seeds) {
         (Some(dir), None) => evaluate_dir_with(&cfg, dir, &o, a.config.as_deref())?,
         (None, Some(s)) => {

@@ -2,8 +2,18 @@
 //! case scored per seed (one progress line per seed on stderr), then the
 //! summary over the seeds (worst, median, ratio to the oracle floor) and
 //! with `--out` report.json.
+//!
+//! With `--peers`, VQF and Fusion ([`crate::peers`]) run on the very samples
+//! ours decodes from each seed's frames (with the magnetometer when ours used
+//! it, as `evaluate --realdata` runs them), and are scored as ours is, over
+//! the same windows, after their own yaw offset is removed
+//! ([`super::metrics::peer_track`]: their heading has an origin of its own).
+//! They declare no standstill, learn a bias ours does not score, and have no
+//! modes: those cells are '-'.
 
-use super::{cases, oracle, score, table::num, write_reports, EvalOptions, Metrics, RunData, Table, Window, MOVING_MPS};
+use super::{
+    cases, oracle, peer_track, score, score_attitude, table::num, write_reports, EvalOptions, Metrics, RunData, Table, Window, MOVING_MPS,
+};
 use crate::config::Config;
 use crate::sim::{self, SimOptions};
 use serde::Serialize;
@@ -13,11 +23,32 @@ use std::path::Path;
 #[derive(Clone, Debug, Serialize)]
 pub struct SeedRow {
     pub seed: u64,
-    /// Scored from `score_from`.
+    /// Scored from `score_from`: ours (each case), then the peers.
     pub cases: Vec<Metrics>,
     /// Scored over the manoeuvres only (the oracle floor's window).
     pub manoeuvres: Vec<Metrics>,
     pub oracle: Metrics,
+}
+
+/// The peers `--peers` runs beside ours, in their row order.
+pub const PEERS: [&str; 2] = ["vqf", "fusion"];
+
+/// The peers over a run's samples (decoded with `cfg`, the config ours ran
+/// with; 9D when `magn`, as ours used the magnetometer), each with its yaw
+/// offset removed: (name, roll/pitch/yaw per sample, deg).
+pub fn run_peers(data: &RunData, cfg: &Config, magn: bool) -> Result<Vec<(&'static str, Vec<[f64; 3]>)>, String> {
+    let samples = data.samples(cfg)?;
+    if samples.len() != data.truth.len() {
+        return Err(format!(
+            "{} samples decoded for {} truth rows: the peers cannot be scored against the truth",
+            samples.len(),
+            data.truth.len()
+        ));
+    }
+    let period = 1.0 / cfg.profile().rate_hz;
+    let vqf = crate::peers::run_vqf(&samples, period, magn);
+    let fusion = crate::peers::run_fusion(&samples, period, magn);
+    Ok(vec![(PEERS[0], peer_track(data, &vqf).0), (PEERS[1], peer_track(data, &fusion).0)])
 }
 
 /// Median of a slice (upper median for even lengths is avoided: mean of the two middle values).
@@ -52,6 +83,8 @@ pub fn evaluate_seeds_with(
     let list: Vec<u64> = seeds.collect();
     let mut rows: Vec<SeedRow> = Vec::new();
     let case_list = cases(base, o.ablation);
+    let peers: &[&str] = if o.peers { &PEERS } else { &[] };
+    let names: Vec<String> = case_list.iter().map(|(n, _)| n.clone()).chain(peers.iter().map(|p| p.to_string())).collect();
     let mut out = String::new();
     let per_seed = Table::new(&[
         ("seed", ""),
@@ -107,6 +140,8 @@ pub fn evaluate_seeds_with(
         let mut ms = Vec::new();
         let mut man = Vec::new();
         let mut orc = None;
+        // the first case's config and magnetometer decision, for the peers
+        let mut first: Option<(Config, bool)> = None;
         for (name, c) in &case_list {
             let mut c = c.clone();
             if let Some(u) = &data.unit_config {
@@ -114,13 +149,21 @@ pub fn evaluate_seeds_with(
                 c.mounting = u.mounting.clone();
                 c.speed = u.speed.clone();
             }
-            let (est, mode_s) = data.estimates(&c)?;
+            let (est, mode_s, magn) = data.estimates_and_magnetometer(&c)?;
             if orc.is_none() {
                 orc = Some(oracle(&data, &est, w.start).0);
             }
             let still = data.still_moving(&est);
             ms.push(Metrics { still_moving_s: still, ..score(name, &data, &est, mode_s, o.score_from) });
             man.push(Metrics { still_moving_s: still, ..score(name, &data, &est, mode_s, w.start) });
+            first.get_or_insert((c, magn));
+        }
+        if o.peers {
+            let (c, magn) = first.as_ref().ok_or("no case")?;
+            for (name, att) in run_peers(&data, c, *magn).map_err(|e| format!("seed {seed}: {e}"))? {
+                ms.push(score_attitude(name, &data, &att, o.score_from));
+                man.push(score_attitude(name, &data, &att, w.start));
+            }
         }
         let orc = orc.ok_or("no case")?;
         for (m, mm) in ms.iter().zip(&man) {
@@ -188,7 +231,7 @@ pub fn evaluate_seeds_with(
     for (title, man) in windows {
         out += &format!("-- {title}\n");
         out += &summary.header();
-        for (ci, (name, _)) in case_list.iter().enumerate() {
+        for (ci, name) in names.iter().enumerate() {
             let pick = |r: &SeedRow| if man { r.manoeuvres[ci].clone() } else { r.cases[ci].clone() };
             let per: Vec<Metrics> = rows.iter().map(pick).collect();
             let wr = per.iter().map(|m| m.max_err[0]).fold(0.0, f64::max);

@@ -47,9 +47,11 @@ pub struct ReferenceArgs {
     /// --input, --seeds or --realdata is required.
     #[arg(long, value_name = "DIR", conflicts_with_all = ["input", "seeds", "ablation"])]
     pub realdata: Option<PathBuf>,
-    /// Also run VQF (vqf-rs, 9D with the magnetometer, 6D without) on the
-    /// same decoded samples, scored identically. Default: off (always on with
-    /// --realdata).
+    /// Also run the peers on the same decoded samples, scored identically: VQF
+    /// (vqf-rs, 9D with the magnetometer, 6D without) with --reference and
+    /// --realdata; with --seeds too, VQF and Fusion (x-io's AHRS, fusion-ahrs)
+    /// beside ours in every seed's rows and the summary. Default: off (always
+    /// on with --realdata).
     #[arg(long)]
     pub peers: bool,
     /// Reference time of the log's first sample, s.
