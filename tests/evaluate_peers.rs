@@ -136,3 +136,15 @@ fn the_printed_vqf_row_is_vqf_on_the_samples_ours_decoded() {
         assert!(m.max_err[0] < 0.5 && m.max_err[1] < 0.5, "{case} tilt on a static unit: {:?}", m.max_err);
     }
 }
+
+#[test]
+fn help_lists_every_scenario_and_peers_with_seeds() {
+    let out = Command::new(env!("CARGO_BIN_EXE_gyrocomp")).args(["evaluate", "--help"]).output().unwrap();
+    let help = String::from_utf8(out.stdout).unwrap().split_whitespace().collect::<Vec<_>>().join(" ");
+    for sc in gyrocomp::sim::scenario::SCENARIOS {
+        let line = help.split("--scenario <NAME>").nth(1).unwrap().split("--hard").next().unwrap();
+        assert!(line.contains(sc), "--scenario help names no {sc}: {line}");
+    }
+    let peers = help.split("--peers").nth(1).unwrap().split("--offset").next().unwrap();
+    assert!(peers.contains("--seeds") && peers.contains("Fusion"), "{peers}");
+}

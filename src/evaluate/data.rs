@@ -26,6 +26,15 @@ pub struct RunData {
     source: Source,
 }
 
+/// One replay of the estimator over a run.
+struct Replayed {
+    est: Vec<Estimate>,
+    /// Seconds in fusion, blend, gyro only.
+    mode_seconds: [f64; 3],
+    /// The estimator's magnetometer decision (None: undecided, or a mode without one).
+    magnetometer: Option<bool>,
+}
+
 enum Source {
     Log(PathBuf),
     /// The whole bus of an in-memory run (IMU frames and wheel speeds), and
@@ -93,7 +102,7 @@ impl RunData {
         cfg: &Config,
         prepare: impl FnOnce(&mut crate::estimator::Estimator),
     ) -> Result<(Vec<Estimate>, [f64; 3]), String> {
-        self.replay(cfg, prepare).map(|(est, modes, _)| (est, modes))
+        self.replay(cfg, prepare).map(|r| (r.est, r.mode_seconds))
     }
 
     /// [`Self::estimates`], and whether the estimator used the magnetometer
@@ -101,8 +110,8 @@ impl RunData {
     /// `evaluate --realdata` decides it for the peers: VQF and Fusion fuse
     /// the magnetometer when ours did.
     pub fn estimates_and_magnetometer(&self, cfg: &Config) -> Result<(Vec<Estimate>, [f64; 3], bool), String> {
-        let (est, modes, used) = self.replay(cfg, |_| {})?;
-        Ok((est, modes, crate::reference::magnetometer_configured(cfg) && used.unwrap_or(true)))
+        let r = self.replay(cfg, |_| {})?;
+        Ok((r.est, r.mode_seconds, crate::reference::magnetometer_configured(cfg) && r.magnetometer.unwrap_or(true)))
     }
 
     /// The samples the estimator is given, decoded from the run's frames
@@ -131,20 +140,14 @@ impl RunData {
         }
     }
 
-    /// Run the estimator over the run's input: the estimates, the seconds
-    /// per mode, and the estimator's magnetometer decision (None: undecided,
-    /// or a mode without one).
-    fn replay(
-        &self,
-        cfg: &Config,
-        prepare: impl FnOnce(&mut crate::estimator::Estimator),
-    ) -> Result<(Vec<Estimate>, [f64; 3], Option<bool>), String> {
+    /// Run the estimator over the run's input.
+    fn replay(&self, cfg: &Config, prepare: impl FnOnce(&mut crate::estimator::Estimator)) -> Result<Replayed, String> {
         let mut est = Vec::with_capacity(self.truth.len());
         match &self.source {
             Source::Log(p) => {
                 let sum =
                     replay_files(cfg, &ReplayFiles { input: p, output: None, csv: None }, Some(&mut est)).map_err(|e| e.to_string())?;
-                Ok((est, sum.mode_seconds, sum.report.magnetometer))
+                Ok(Replayed { est, mode_seconds: sum.mode_seconds, magnetometer: sum.report.magnetometer })
             }
             Source::Frames(fr, dbc) => {
                 struct Keep<'a>(&'a mut Vec<Estimate>);
@@ -167,7 +170,7 @@ impl RunData {
                 for f in fr {
                     pipe.push(f.t_us, RawFrame::classic(f.id, &f.data), &mut sink);
                 }
-                Ok((est, pipe.mode_seconds(), pipe.estimator().magnetometer()))
+                Ok(Replayed { est, mode_seconds: pipe.mode_seconds(), magnetometer: pipe.estimator().magnetometer() })
             }
         }
     }

@@ -38,7 +38,7 @@ pub use dir::{evaluate_dir, evaluate_dir_with};
 pub use metrics::{
     errors, oracle, peer_track, rest_window, score, score_attitude, still_moving_s, yaw_offset, Metrics, Window, MOVING_MPS,
 };
-pub use seeds::{evaluate_seeds, evaluate_seeds_with, median, run_peers, SeedRow, PEERS};
+pub use seeds::{evaluate_seeds, evaluate_seeds_with, median, run_peers, PeerTrack, SeedRow, PEERS};
 pub use table::{run_row, run_table, Table};
 
 use crate::config::{Config, Mode};

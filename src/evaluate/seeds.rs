@@ -33,10 +33,13 @@ pub struct SeedRow {
 /// The peers `--peers` runs beside ours, in their row order.
 pub const PEERS: [&str; 2] = ["vqf", "fusion"];
 
+/// A peer's name and its roll, pitch, yaw per sample (deg).
+pub type PeerTrack = (&'static str, Vec<[f64; 3]>);
+
 /// The peers over a run's samples (decoded with `cfg`, the config ours ran
 /// with; 9D when `magn`, as ours used the magnetometer), each with its yaw
 /// offset removed: (name, roll/pitch/yaw per sample, deg).
-pub fn run_peers(data: &RunData, cfg: &Config, magn: bool) -> Result<Vec<(&'static str, Vec<[f64; 3]>)>, String> {
+pub fn run_peers(data: &RunData, cfg: &Config, magn: bool) -> Result<Vec<PeerTrack>, String> {
     let samples = data.samples(cfg)?;
     if samples.len() != data.truth.len() {
         return Err(format!(
