@@ -151,6 +151,12 @@ pub struct EvaluateArgs {
     /// driving (urban, vehicle, paper, smooth, crawl). Default: a parked start.
     #[arg(long, requires = "seeds")]
     pub power_on_moving: bool,
+    /// With --seeds: a TOML file overriding any subset of the ranges the
+    /// sensor errors are drawn from, as `simulate --ranges` takes it (e.g.
+    /// `turn_on_bias = 0.5`, deg/s: a unit whose turn-on bias is within
+    /// VQF's bias clip of 2 deg/s). Default: the scenario's ranges.
+    #[arg(long, value_name = "FILE", requires = "seeds")]
+    pub ranges: Option<std::path::PathBuf>,
     /// With --seeds (urban): the estimator uses the car's wheel speeds
     /// ([speed] of each run's config). Default: IMU only.
     #[arg(long, requires = "seeds")]
@@ -215,6 +221,12 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
             so.speed = a.speed;
             so.duration = a.duration;
             so.thermal_error = a.thermal_error;
+            if let Some(p) = &a.ranges {
+                let text = crate::textfile::read(p).map_err(|e| format!("--ranges {}: {e}", p.display()))?;
+                // refused here, with the file's name, not once per seed
+                crate::sim::scenario::Ranges::with_overrides(sc, &text).map_err(|e| format!("--ranges {}: {e}", p.display()))?;
+                so.ranges = Some(text);
+            }
             so.profile = cfg.input.profile.clone();
             evaluate_seeds_with(&cfg, &so, parse_seeds(s)?, &o, a.config.as_deref())?
         }

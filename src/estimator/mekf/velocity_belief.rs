@@ -179,22 +179,39 @@ mod tests {
     }
 
     /// The velocity's noise follows the car's acceleration: quiet it is
-    /// `q_accel_quiet`, braking at 1 m/s^2 or shaking by 0.1 g RMS it is
-    /// `q_accel`, knocked far more.
+    /// `q_accel_quiet` on every axis; braking at 1 m/s^2 it is `q_accel`
+    /// along the braking and stays quiet across it (the vertical and the
+    /// lateral channel); shaking by 0.1 g RMS it is `q_accel` on every axis;
+    /// knocked far more.
     #[test]
-    fn the_velocity_noise_of_a_quiet_car_is_small() {
+    fn the_velocity_noise_of_a_quiet_car_is_small_and_braking_is_along_the_road() {
         let m = car(10.0, 0.5);
+        let (quiet, full) = (m.p.q_accel_quiet, m.p.q_accel);
+        let near = |a: f64, b: f64| (a - b).abs() < 1e-12;
         let still = Accum { t: 1.0, n: 1, accel: [0.0, 0.0, -1.0], accel2: 1.0, dv: [0.0, 0.0, -G], ..Accum::default() };
-        assert!((m.velocity_noise(&still) - m.p.q_accel_quiet).abs() < 1e-12);
+        let q = m.velocity_noise(&still);
+        assert!((0..3).all(|i| near(q[i][i], quiet) && (0..3).all(|j| i == j || q[i][j] == 0.0)), "{q:?}");
+        // braking along north at 1 m/s^2
         let braking = Accum { dv: [-1.0, 0.0, -G], ..still.clone() };
-        assert!((m.velocity_noise(&braking) - m.p.q_accel).abs() < 1e-12);
+        let q = m.velocity_noise(&braking);
+        assert!(near(q[0][0], full), "along: {q:?}");
+        assert!(near(q[1][1], quiet) && near(q[2][2], quiet), "across: {q:?}");
+        // braking along north-east: the same noise, turned
+        let s = std::f64::consts::FRAC_1_SQRT_2;
+        let q = m.velocity_noise(&Accum { dv: [-s, -s, -G], ..still.clone() });
+        assert!(near(q[0][0], 0.5 * (full + quiet)) && near(q[0][1], 0.5 * (full - quiet)) && near(q[2][2], quiet), "{q:?}");
         // two samples at ±0.1 g about gravity
         let shaking = Accum { n: 2, accel: [0.0, 0.0, -2.0], accel2: 2.0 * (1.0 + 0.01), dv: [0.0, 0.0, -G], ..still.clone() };
-        assert!((m.velocity_noise(&shaking) - m.p.q_accel).abs() < 1e-12);
-        assert!(m.p.q_accel_quiet < 0.02 * m.p.q_accel);
+        let q = m.velocity_noise(&shaking);
+        assert!((0..3).all(|i| near(q[i][i], full)), "{q:?}");
+        // braking while shaking: never more than the whole of `q_accel`
+        let q = m.velocity_noise(&Accum { dv: [-1.0, 0.0, -G], ..shaking.clone() });
+        assert!(near(q[0][0], full), "{q:?}");
+        assert!(quiet < 0.02 * full);
         // a knock, ±2 g about gravity within the tick: no car's change of
         // speed, the velocity's noise far above `q_accel`
         let knock = Accum { n: 2, accel: [0.0, 0.0, -2.0], accel2: 2.0 * (1.0 + 4.0), dv: [0.0, 0.0, -G], ..still.clone() };
-        assert!(m.velocity_noise(&knock) > 100.0 * m.p.q_accel, "{}", m.velocity_noise(&knock));
+        let q = m.velocity_noise(&knock);
+        assert!((0..3).all(|i| q[i][i] > 100.0 * full), "{q:?}");
     }
 }
