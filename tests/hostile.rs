@@ -448,3 +448,34 @@ fn evaluate_refuses_a_damaged_run_directory_naming_the_place() {
         &["imu.log: 0 estimates", "500 of its 500 lines are not candump frames", "line 1: bad timestamp"],
     );
 }
+
+/// Item 15: `--out FILE` says the name is not a directory (it said `File
+/// exists (os error 17)`); a truth.csv, reference or CSV recording that is
+/// not UTF-8 names the file, line and column; a model's 1e300 is written
+/// 1e300, not with 301 digits.
+#[test]
+fn messages_name_the_place_and_say_what_is_wrong() {
+    let d = tempfile::tempdir().unwrap();
+    let run = simulated(d.path(), "run");
+    let file = d.path().join("afile");
+    fs::write(&file, "x").unwrap();
+    refused(&["simulate", "--scenario", "static", "--duration", "5", "--out", s(&file)], &["is not a directory"]);
+    refused(&["evaluate", "--input", s(&run), "--out", s(&file)], &["--out", "is not a directory"]);
+    let mut truth = fs::read(run.join("truth.csv")).unwrap();
+    truth.extend_from_slice(b"\xff\xfe\n");
+    fs::write(run.join("truth.csv"), &truth).unwrap();
+    refused(&["evaluate", "--input", s(&run)], &["truth.csv: not UTF-8 text: line 4099, column 1 (byte 0xff)"]);
+    let bad = d.path().join("bad.csv");
+    fs::write(&bad, b"t,roll,pitch,yaw\n0,0,0,\xff\n").unwrap();
+    refused(&["evaluate", "--input", ROAD, "--reference", s(&bad)], &["bad.csv: not UTF-8 text: line 2, column 7"]);
+    fs::write(&bad, b"t,gx,gy,gz,ax,ay,az\n0,1,\xff\n").unwrap();
+    refused(&["import", "--csv", s(&bad), "--out", s(&d.path().join("o.log"))], &["bad.csv line 2, not UTF-8 text: column 5"]);
+    let model = fs::read_to_string(run.join("sensor.toml")).unwrap();
+    let m = d.path().join("m.toml");
+    fs::write(&m, model.replacen("gyro_white = ", "gyro_white = 1e300 #", 1)).unwrap();
+    let e = refused(
+        &["simulate", "--scenario", "static", "--duration", "5", "--model", s(&m), "--out", s(&d.path().join("m"))],
+        &["got 1e300"],
+    );
+    assert!(!e.contains("00000000000"), "{e}");
+}

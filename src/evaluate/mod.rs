@@ -78,7 +78,7 @@ pub struct EvalOptions {
 /// Write the report files: every destination checked first (not an input,
 /// not a directory), then each written through a temporary file.
 fn write_reports(dir: &Path, inputs: &[&Path], files: &[(&str, Vec<u8>)]) -> Result<(), String> {
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    crate::outfile::create_dir(dir).map_err(|e| format!("--out {}: {e}", dir.display()))?;
     let dests: Vec<PathBuf> = files.iter().map(|(n, _)| dir.join(n)).collect();
     let refs: Vec<&Path> = dests.iter().map(PathBuf::as_path).collect();
     crate::outfile::refuse_inputs_as_outputs(inputs, &refs)?;

@@ -190,12 +190,27 @@ fn field(s: &str, k: usize, path: &str, no: u64) -> Result<Option<f64>, String> 
 pub fn read_imu_csv(path: &Path, axes: &AxesMap) -> Result<ImuCsv, String> {
     let p = path.display().to_string();
     let mut rd = open_text(path)?;
+    read_imu_csv_from(&mut rd, &p, axes)
+}
+
+/// [`read_imu_csv`] from a reader (`p` names it in errors).
+pub fn read_imu_csv_from(rd: &mut dyn BufRead, p: &str, axes: &AxesMap) -> Result<ImuCsv, String> {
+    let p = p.to_string();
     let mut buf = String::new();
+    let mut bytes = Vec::new();
     let mut no: u64 = 0;
     let mut next_line = |buf: &mut String, no: &mut u64| -> Result<bool, String> {
         buf.clear();
-        let n = rd.read_line(buf).map_err(|e| format!("{p} line {}: {e}", *no + 1))?;
+        bytes.clear();
+        let n = rd.read_until(b'\n', &mut bytes).map_err(|e| format!("{p} line {}: {e}", *no + 1))?;
         *no += 1;
+        match std::str::from_utf8(&bytes) {
+            Ok(s) => buf.push_str(s),
+            Err(e) => {
+                let t = crate::textfile::not_text(&bytes, e.valid_up_to());
+                return Err(format!("{p} line {no}, {}", t.replace("line 1, ", "")));
+            }
+        }
         while buf.ends_with('\n') || buf.ends_with('\r') {
             buf.pop();
         }

@@ -34,7 +34,7 @@ pub mod encode;
 
 use crate::config::Config;
 use crate::outfile::{refuse_inputs_as_outputs, OutFile};
-pub use csv::{open_text, read_imu_csv, AxesMap, ImuCsv};
+pub use csv::{open_text, read_imu_csv, read_imu_csv_from, AxesMap, ImuCsv};
 pub use encode::{choose_scales, plan_counter, write_log, LogStats, Merge, ScaleSource, Scales, Timing};
 use std::io::Write;
 use std::path::{Path, PathBuf};

@@ -390,7 +390,7 @@ impl Evaluation {
 
     /// Write `report.json` and `errors.svg` into `dir` (created).
     pub fn write(&self, dir: &Path, input: &str, reference: &str) -> Result<(), String> {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        crate::outfile::create_dir(dir).map_err(|e| format!("--out {}: {e}", dir.display()))?;
         let json = serde_json::to_string_pretty(&self.report(input, reference)).map_err(|e| e.to_string())?;
         let p = dir.join("report.json");
         crate::outfile::write_atomic(&p, json.as_bytes()).map_err(|e| format!("{}: {e}", p.display()))?;

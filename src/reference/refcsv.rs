@@ -55,8 +55,14 @@ fn number(s: &str, name: &str, path: &str, no: u64) -> Result<f64, String> {
 pub fn read_reference(path: &Path) -> Result<Reference, String> {
     let p = path.display().to_string();
     let mut rd = open_text(path)?;
-    let mut text = String::new();
-    std::io::Read::read_to_string(&mut rd, &mut text).map_err(|e| format!("{p}: {e}"))?;
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut rd, &mut bytes).map_err(|e| format!("{p}: {e}"))?;
+    let text = crate::textfile::from_bytes(bytes).map_err(|e| format!("{p}: {e}"))?;
+    parse_reference(&text, &p)
+}
+
+/// [`read_reference`] of text (`p` names it in errors).
+pub fn parse_reference(text: &str, p: &str) -> Result<Reference, String> {
     let mut lines = text.lines().enumerate();
     let header = match lines.next() {
         Some((_, h)) => h,

@@ -249,7 +249,7 @@ pub fn run(a: &SimulateArgs) -> Result<(), String> {
     let inputs = a.inputs();
     check_destinations(&inputs, &FILES.map(|f| a.out.join(f)))?;
     let created = !a.out.exists();
-    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    crate::outfile::create_dir(&a.out).map_err(|e| format!("--out {}: {e}", a.out.display()))?;
     let r = simulate_into(a, &o, &inputs);
     if r.is_err() && created {
         let _ = std::fs::remove_dir(&a.out); // only when still empty

@@ -544,7 +544,7 @@ fn io_err(p: &Path) -> impl Fn(std::io::Error) -> String + '_ {
 /// Every file is written under a temporary name and renamed when complete.
 pub fn simulate(o: &SimOptions, dir: &Path) -> Result<SimFiles, String> {
     let mut run = prepare(o)?;
-    std::fs::create_dir_all(dir).map_err(io_err(dir))?;
+    crate::outfile::create_dir(dir).map_err(io_err(dir))?;
     let create = |name: &str| -> Result<(PathBuf, OutFile), String> {
         let p = dir.join(name);
         let f = OutFile::create(&p).map_err(io_err(&p))?;
