@@ -97,16 +97,16 @@ pub fn parse_reference(text: &str, p: &str) -> Result<Reference, String> {
             return Err(format!("{p} line {no}: {} fields, the header has {ncol}", f.len()));
         }
         let get = |k: usize| col[k].map(|c| f[c]).unwrap_or("");
-        let t = number(get(0), "t", &p, no)?;
+        let t = number(get(0), "t", p, no)?;
         if let Some(prev) = r.rows.last() {
             if t <= prev.t {
                 return Err(format!("{p} line {no}, column t: time {t} s is not after the previous line's {} s", prev.t));
             }
         }
-        let valid = if col[4].is_some() { flag(get(4), "valid", &p, no)? } else { true };
-        let rest = if col[5].is_some() { flag(get(5), "rest", &p, no)? } else { false };
+        let valid = if col[4].is_some() { flag(get(4), "valid", p, no)? } else { true };
+        let rest = if col[5].is_some() { flag(get(5), "rest", p, no)? } else { false };
         let att = if valid {
-            Some([number(get(1), "roll", &p, no)?, number(get(2), "pitch", &p, no)?, number(get(3), "yaw", &p, no)?])
+            Some([number(get(1), "roll", p, no)?, number(get(2), "pitch", p, no)?, number(get(3), "yaw", p, no)?])
         } else {
             None
         };
