@@ -11,7 +11,7 @@ secs=${1:-60}
 shift || true
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-    targets=(candump_line line_reader adis_assembler pipeline config dbc)
+    targets=(candump_line line_reader adis_assembler pipeline config dbc csv_import reference_csv truth_csv gap_model)
 fi
 if ! command -v cargo-fuzz >/dev/null; then
     echo "[fuzz] installing cargo-fuzz"

@@ -309,6 +309,22 @@ impl Drop for DirGuard {
     }
 }
 
+/// Create the output directory `dir` and its parents; a `dir` that exists
+/// as something else than a directory (a file, a FIFO) is an error saying
+/// so (create_dir_all said `File exists (os error 17)`).
+pub fn create_dir(dir: &Path) -> io::Result<()> {
+    if let Ok(m) = fs::metadata(dir) {
+        if !m.is_dir() {
+            return Err(io::Error::new(
+                io::ErrorKind::AlreadyExists,
+                "is not a directory (a file of that name exists): the output directory must be a directory or a new name",
+            ));
+        }
+        return Ok(());
+    }
+    fs::create_dir_all(dir)
+}
+
 /// Write `bytes` to `dest` through an [`OutFile`].
 pub fn write_atomic(dest: &Path, bytes: &[u8]) -> io::Result<()> {
     let mut f = OutFile::create(dest)?;

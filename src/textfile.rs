@@ -8,7 +8,11 @@ use std::path::Path;
 /// The file as a string; a file that is not UTF-8 is an `InvalidData` error
 /// naming the line, column and byte where it stops being text.
 pub fn read(path: &Path) -> io::Result<String> {
-    let bytes = std::fs::read(path)?;
+    from_bytes(std::fs::read(path)?)
+}
+
+/// [`read`] of bytes already read (a gunzipped file, say).
+pub fn from_bytes(bytes: Vec<u8>) -> io::Result<String> {
     String::from_utf8(bytes).map_err(|e| {
         let at = e.utf8_error().valid_up_to();
         io::Error::new(io::ErrorKind::InvalidData, not_text(e.as_bytes(), at))
@@ -16,7 +20,7 @@ pub fn read(path: &Path) -> io::Result<String> {
 }
 
 /// "not UTF-8 text: line L, column C (byte 0xNN)" for `bytes` invalid at `at`.
-fn not_text(bytes: &[u8], at: usize) -> String {
+pub fn not_text(bytes: &[u8], at: usize) -> String {
     let before = &bytes[..at];
     let line = before.iter().filter(|b| **b == b'\n').count() + 1;
     let start = before.iter().rposition(|b| *b == b'\n').map_or(0, |p| p + 1);

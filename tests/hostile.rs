@@ -271,3 +271,211 @@ fn replay_says_when_the_frame_times_run_backwards_or_are_too_short_to_check() {
     let o = gyrocomp(&["replay", "--input", ROAD, "--csv", s(&csv)]);
     assert!(!text(&o.stderr).contains("ran backwards") && !text(&o.stderr).contains("not checked"), "{}", text(&o.stderr));
 }
+
+/// Expect exit 1 with every one of `want` in stderr; returns stderr.
+fn refused(args: &[&str], want: &[&str]) -> String {
+    let o = gyrocomp(args);
+    let e = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{args:?} exited {:?}: {e}", o.status);
+    for w in want {
+        assert!(e.contains(w), "{args:?}: no {w:?} in: {e}");
+    }
+    e
+}
+
+/// A 20 s static run of `simulate` in `dir/name`.
+fn simulated(dir: &Path, name: &str) -> PathBuf {
+    let p = dir.join(name);
+    let o = gyrocomp(&["simulate", "--scenario", "static", "--duration", "20", "--out", s(&p)]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    p
+}
+
+/// Item 4: a seed range over the documented limit is refused before any
+/// allocation (capacity overflow, an 800 GB allocation).
+#[test]
+fn evaluate_refuses_a_seed_range_over_its_limit() {
+    for r in ["0..18446744073709551615", "0..100000000000", "1..10001"] {
+        refused(&["evaluate", "--seeds", r, "--scenario", "static", "--duration", "1"], &["seeds, over the limit of 10000"]);
+    }
+}
+
+/// Item 7: a run longer than the documented limit is refused up front with
+/// its estimate, and `simulate` leaves nothing (it wrote 130 MB/s).
+#[test]
+fn a_run_over_the_size_limit_is_refused_up_front_with_its_estimate() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("s");
+    refused(
+        &["simulate", "--scenario", "static", "--duration", "1e12", "--out", s(&out)],
+        &["2.048e14 samples", "PB of files", "limit of 1e7 samples"],
+    );
+    assert!(!out.exists(), "simulate made {}", out.display());
+    refused(
+        &["evaluate", "--seeds", "1", "--scenario", "static", "--duration", "1e12"],
+        &["2.048e14 samples", "of memory", "limit of 4e6 samples"],
+    );
+}
+
+/// Item 12: options that mean nothing to a simulate directory are refused,
+/// never ignored; --align-s and --score-from beyond a log's end with
+/// --reference are refused; a directory without config.toml says which
+/// defaults are used; a directory given as the log of --reference is named
+/// as such (it said `line 0: Is a directory`).
+#[test]
+fn evaluate_refuses_options_that_do_not_apply_and_says_its_defaults() {
+    let d = tempfile::tempdir().unwrap();
+    let run = simulated(d.path(), "run");
+    for (a, want) in
+        [(&["--thermal-error", "0.5"][..], "--thermal-error"), (&["--peers"][..], "--peers"), (&["--scenario", "urban"][..], "--scenario")]
+    {
+        refused(&[&["evaluate", "--input", s(&run)][..], a].concat(), &["does not apply", want]);
+    }
+    let refp = d.path().join("ref.csv");
+    let rows: String = (0..=40).map(|t| format!("{t},0,0,0\n")).collect();
+    fs::write(&refp, format!("t,roll,pitch,yaw\n{rows}")).unwrap();
+    let base = ["evaluate", "--input", ROAD, "--reference", s(&refp)];
+    refused(&[&base[..], &["--align-s", "1e9"]].concat(), &["--align-s", "past the end of the log (40.0 s)"]);
+    refused(&[&base[..], &["--score-from", "1e9"]].concat(), &["--score-from", "after the end of the log (40.0 s)"]);
+    refused(&["evaluate", "--input", s(&run), "--reference", s(&refp)], &["is a directory", "candump log"]);
+    fs::remove_file(run.join("config.toml")).unwrap();
+    let o = gyrocomp(&["evaluate", "--input", s(&run)]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(text(&o.stdout).contains("has no config.toml and no --config was given: the built-in defaults are used (profile adis16448"));
+}
+
+/// A CSV recording of `n` samples at 200 Hz, gyro `g` deg/s on every axis.
+fn recording(n: usize, g: f64) -> String {
+    let mut c = String::from("t,gx,gy,gz,ax,ay,az\n");
+    for i in 0..n {
+        c += &format!("{:.3},{g},{g},{g},0,0,-1\n", i as f64 * 0.005);
+    }
+    c
+}
+
+/// Item 3: one cell beyond any real part is refused with its line and
+/// column (gx = 1e300 made the gyro LSB 3.9e295: every register 0), and an
+/// outlier within the range that would set a scale erasing the rest of the
+/// channel is refused too, naming it; the signal alone imports.
+#[test]
+fn import_refuses_a_value_beyond_any_part_and_an_outlier_that_would_erase_the_signal() {
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("a.csv");
+    let out = d.path().join("a.log");
+    let with = |v: &str| recording(1000, 0.05).replacen("2.490,0.05,", &format!("2.490,{v},"), 1);
+    fs::write(&csv, with("1e300")).unwrap();
+    refused(
+        &["import", "--csv", s(&csv), "--out", s(&out)],
+        &["line 500, column gx", "beyond any real part's range", "-10000..10000 deg/s"],
+    );
+    fs::write(&csv, with("9000")).unwrap();
+    refused(&["import", "--csv", s(&csv), "--out", s(&out)], &["line 500, column gx", "99th percentile", "round to 0"]);
+    assert!(!out.exists());
+    fs::write(&csv, with("0.05")).unwrap();
+    let o = gyrocomp(&["import", "--csv", s(&csv), "--out", s(&out)]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+}
+
+/// Item 11: --epoch and --rate have ranges, said when refused; a negative
+/// rate is a rate out of range, not an unexpected argument; a rate the
+/// recording's t contradicts (every sample crowded) is refused.
+#[test]
+fn import_refuses_an_epoch_or_rate_out_of_range() {
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("a.csv");
+    let out = d.path().join("a.log");
+    fs::write(&csv, recording(400, 0.5)).unwrap();
+    let run = |extra: &[&str]| gyrocomp(&[&["import", "--csv", s(&csv), "--out", s(&out)][..], extra].concat());
+    for (a, want) in [
+        (["--epoch", "10000000000000"], "0..=9999999999"),
+        (["--epoch", "18446744073709551615"], "0..=9999999999"),
+        (["--rate", "1e-9"], "within 1..100000 Hz"),
+        (["--rate", "-5"], "within 1..100000 Hz"),
+    ] {
+        let o = run(&a);
+        assert_eq!(o.status.code(), Some(2), "{a:?}");
+        assert!(text(&o.stderr).contains(want) && !text(&o.stderr).contains("unexpected argument"), "{a:?}: {}", text(&o.stderr));
+    }
+    let o = run(&["--rate", "1"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o.stderr).contains("399 of the 400 samples are closer than half a period"), "{}", text(&o.stderr));
+    assert!(!out.exists());
+    let o = run(&["--epoch", "9999999999", "--rate", "200"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+}
+
+/// Item 10: `evaluate --input DIR` refuses a truth.csv or bias.csv holding
+/// nan or inf, or with two rows swapped, naming file, line and column (it
+/// scored '-' and exited 0); an imu.log of garbage names the log and its
+/// bad lines (it said '0 estimates for N truth rows').
+#[test]
+fn evaluate_refuses_a_damaged_run_directory_naming_the_place() {
+    let d = tempfile::tempdir().unwrap();
+    let run = simulated(d.path(), "run");
+    let truth = fs::read_to_string(run.join("truth.csv")).unwrap();
+    let bias = fs::read_to_string(run.join("bias.csv")).unwrap();
+    // replace the second column of line `no` (1-based)
+    let edit = |t: &str, no: usize, v: &str| -> String {
+        t.lines()
+            .enumerate()
+            .map(|(i, l)| {
+                if i + 1 == no {
+                    let mut f: Vec<&str> = l.split(',').collect();
+                    f[1] = v;
+                    f.join(",") + "\n"
+                } else {
+                    format!("{l}\n")
+                }
+            })
+            .collect()
+    };
+    for v in ["nan", "inf"] {
+        fs::write(run.join("truth.csv"), edit(&truth, 3001, v)).unwrap();
+        refused(&["evaluate", "--input", s(&run)], &["truth.csv line 3001, column roll", "not a finite number"]);
+    }
+    let mut swapped: Vec<&str> = truth.lines().collect();
+    swapped.swap(100, 101);
+    fs::write(run.join("truth.csv"), swapped.join("\n") + "\n").unwrap();
+    refused(&["evaluate", "--input", s(&run)], &["truth.csv line 102, column t", "not after the previous row"]);
+    fs::write(run.join("truth.csv"), &truth).unwrap();
+    fs::write(run.join("bias.csv"), edit(&bias, 100, "NaN")).unwrap();
+    refused(&["evaluate", "--input", s(&run)], &["bias.csv line 100, column bx", "not a finite number"]);
+    fs::write(run.join("bias.csv"), &bias).unwrap();
+    let garbage: String = (0..500).map(|i| format!("{:x}{}\n", i * 7919, "zz".repeat(i % 30))).collect();
+    fs::write(run.join("imu.log"), garbage).unwrap();
+    refused(
+        &["evaluate", "--input", s(&run)],
+        &["imu.log: 0 estimates", "500 of its 500 lines are not candump frames", "line 1: bad timestamp"],
+    );
+}
+
+/// Item 15: `--out FILE` says the name is not a directory (it said `File
+/// exists (os error 17)`); a truth.csv, reference or CSV recording that is
+/// not UTF-8 names the file, line and column; a model's 1e300 is written
+/// 1e300, not with 301 digits.
+#[test]
+fn messages_name_the_place_and_say_what_is_wrong() {
+    let d = tempfile::tempdir().unwrap();
+    let run = simulated(d.path(), "run");
+    let file = d.path().join("afile");
+    fs::write(&file, "x").unwrap();
+    refused(&["simulate", "--scenario", "static", "--duration", "5", "--out", s(&file)], &["is not a directory"]);
+    refused(&["evaluate", "--input", s(&run), "--out", s(&file)], &["--out", "is not a directory"]);
+    let mut truth = fs::read(run.join("truth.csv")).unwrap();
+    truth.extend_from_slice(b"\xff\xfe\n");
+    fs::write(run.join("truth.csv"), &truth).unwrap();
+    refused(&["evaluate", "--input", s(&run)], &["truth.csv: not UTF-8 text: line 4099, column 1 (byte 0xff)"]);
+    let bad = d.path().join("bad.csv");
+    fs::write(&bad, b"t,roll,pitch,yaw\n0,0,0,\xff\n").unwrap();
+    refused(&["evaluate", "--input", ROAD, "--reference", s(&bad)], &["bad.csv: not UTF-8 text: line 2, column 7"]);
+    fs::write(&bad, b"t,gx,gy,gz,ax,ay,az\n0,1,\xff\n").unwrap();
+    refused(&["import", "--csv", s(&bad), "--out", s(&d.path().join("o.log"))], &["bad.csv line 2, not UTF-8 text: column 5"]);
+    let model = fs::read_to_string(run.join("sensor.toml")).unwrap();
+    let m = d.path().join("m.toml");
+    fs::write(&m, model.replacen("gyro_white = ", "gyro_white = 1e300 #", 1)).unwrap();
+    let e = refused(
+        &["simulate", "--scenario", "static", "--duration", "5", "--model", s(&m), "--out", s(&d.path().join("m"))],
+        &["got 1e300"],
+    );
+    assert!(!e.contains("00000000000"), "{e}");
+}

@@ -11,7 +11,7 @@ impl Calibration {
     /// time, per axis, with the cut). Each file is written through
     /// [`crate::outfile`] (never half-written). Returns the files written.
     pub fn plot(&self, dir: &Path) -> Result<Vec<PathBuf>, CalError> {
-        std::fs::create_dir_all(dir).map_err(|e| CalError::Output { path: dir.display().to_string(), msg: e.to_string() })?;
+        crate::outfile::create_dir(dir).map_err(|e| CalError::Output { path: dir.display().to_string(), msg: e.to_string() })?;
         let files = plot_files(dir, self.runs.len());
         let th = self.thermal();
         // the warm-up plots show the data the fit saw, also outside the calibrated range: no clamp

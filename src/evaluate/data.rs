@@ -147,6 +147,20 @@ impl RunData {
             Source::Log(p) => {
                 let sum =
                     replay_files(cfg, &ReplayFiles { input: p, output: None, csv: None }, Some(&mut est)).map_err(|e| e.to_string())?;
+                if est.len() != self.truth.len() && sum.bad_lines > 0 {
+                    // a damaged log: name it and its bad lines
+                    let first: Vec<String> = sum.bad_examples.iter().take(3).map(|(n, e)| format!("line {n}: {e}")).collect();
+                    return Err(format!(
+                        "{}: {} estimates for {} truth rows: {} of its {} lines are not candump frames ({}{})",
+                        p.display(),
+                        est.len(),
+                        self.truth.len(),
+                        sum.bad_lines,
+                        sum.lines,
+                        first.join("; "),
+                        if sum.bad_lines > first.len() as u64 { "; ..." } else { "" }
+                    ));
+                }
                 Ok(Replayed { est, mode_seconds: sum.mode_seconds, magnetometer: sum.report.magnetometer })
             }
             Source::Frames(fr, dbc) => {

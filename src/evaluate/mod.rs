@@ -45,6 +45,9 @@ use crate::config::{Config, Mode};
 use crate::sim::SimOptions;
 use std::path::{Path, PathBuf};
 
+/// `--thermal-error` when not given: each axis's slope off by up to +-5 %.
+pub const DEFAULT_THERMAL_ERROR: f64 = 0.05;
+
 /// The ablation cases: the paper's three, then the default mode.
 pub fn cases(base: &Config, ablation: bool) -> Vec<(String, Config)> {
     let with = |m: Mode| {
@@ -80,7 +83,7 @@ pub struct EvalOptions {
 /// Write the report files: every destination checked first (not an input,
 /// not a directory), then each written through a temporary file.
 fn write_reports(dir: &Path, inputs: &[&Path], files: &[(&str, Vec<u8>)]) -> Result<(), String> {
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    crate::outfile::create_dir(dir).map_err(|e| format!("--out {}: {e}", dir.display()))?;
     let dests: Vec<PathBuf> = files.iter().map(|(n, _)| dir.join(n)).collect();
     let refs: Vec<&Path> = dests.iter().map(PathBuf::as_path).collect();
     crate::outfile::refuse_inputs_as_outputs(inputs, &refs)?;
@@ -93,7 +96,12 @@ fn write_reports(dir: &Path, inputs: &[&Path], files: &[(&str, Vec<u8>)]) -> Res
     Ok(())
 }
 
-/// Parse `A..B` (inclusive) or a single seed.
+/// The most seeds one `evaluate --seeds` run takes: each is a whole
+/// simulated run (seconds to minutes each), and the per-seed rows are kept
+/// for the summary.
+pub const MAX_SEEDS: u64 = 10_000;
+
+/// Parse `A..B` (inclusive) or a single seed; at most [`MAX_SEEDS`] seeds.
 pub fn parse_seeds(s: &str) -> Result<std::ops::RangeInclusive<u64>, String> {
     let bad = || format!("--seeds wants A..B (inclusive) or N, got {s:?}");
     match s.split_once("..") {
@@ -102,6 +110,12 @@ pub fn parse_seeds(s: &str) -> Result<std::ops::RangeInclusive<u64>, String> {
             let b: u64 = b.trim().trim_start_matches('=').parse().map_err(|_| bad())?;
             if a > b {
                 return Err(bad());
+            }
+            let n = (b - a) as u128 + 1;
+            if n > MAX_SEEDS as u128 {
+                return Err(format!(
+                    "--seeds {s}: {n} seeds, over the limit of {MAX_SEEDS} (each seed is a whole simulated run); split the range"
+                ));
             }
             Ok(a..=b)
         }
@@ -135,7 +149,7 @@ pub struct EvaluateArgs {
     #[arg(long)]
     pub ablation: bool,
     /// Simulate (in memory) and evaluate these seeds: A..B inclusive, or one
-    /// seed N. Required unless --input is given; needs --scenario.
+    /// seed N; at most 10000 seeds. Required unless --input is given; needs --scenario.
     #[arg(long, value_name = "A..B", requires = "scenario")]
     pub seeds: Option<String>,
     /// With --seeds: the scenario to simulate (static, chamber, paper,
@@ -164,13 +178,16 @@ pub struct EvaluateArgs {
     /// With --seeds: duration of each run, s (> 0). Default: the scenario's
     /// (static 300, chamber 1800, paper and vehicle 800, urban 400, smooth and
     /// crawl 600, smooth --hard 1000; the manoeuvres of paper and vehicle start
-    /// at 350).
+    /// at 350). At most 4 million samples a run (held in memory, about
+    /// 1.6 GB): 19531 s of adis16448, 4882 s of adis16405, 2000 s of
+    /// adis16465-1; longer is refused up front with its estimate.
     #[arg(long, value_name = "S", requires = "seeds", allow_negative_numbers = true, value_parser = crate::sim::cli::positive_seconds)]
     pub duration: Option<f64>,
     /// With --seeds: relative error of the thermal slope the estimator is
     /// given, a fraction 0..1 (0.05 = each axis off by up to +-5 %).
-    #[arg(long, value_name = "FRACTION", allow_negative_numbers = true, value_parser = crate::sim::cli::fraction, default_value_t = 0.05)]
-    pub thermal_error: f64,
+    /// Default: 0.05.
+    #[arg(long, value_name = "FRACTION", allow_negative_numbers = true, value_parser = crate::sim::cli::fraction)]
+    pub thermal_error: Option<f64>,
     /// Score from this time on, s after power-on (>= 0); the manoeuvres-only
     /// scores start where the manoeuvres do. Alias: --skip.
     #[arg(
@@ -197,6 +214,23 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
     if a.real.align_s.is_some() || a.real.offset != 0.0 {
         return Err("--align-s and --offset apply to a measured reference only (--reference or --realdata)".into());
     }
+    if a.seeds.is_none() {
+        // options of the simulated seeds or of a measured reference mean
+        // nothing to a simulate directory: refused, never ignored
+        let given = [
+            (a.thermal_error.is_some(), "--thermal-error (each seed's calibration; a directory has its own config.toml)"),
+            (a.real.peers, "--peers (VQF and Fusion with --seeds, VQF with --reference or --realdata)"),
+            (a.scenario.is_some(), "--scenario (with --seeds; a directory's scenario is its scenario.toml)"),
+            (a.hard, "--hard (with --seeds)"),
+            (a.power_on_moving, "--power-on-moving (with --seeds)"),
+            (a.speed, "--speed (with --seeds)"),
+            (a.duration.is_some(), "--duration (with --seeds)"),
+            (a.ranges.is_some(), "--ranges (with --seeds)"),
+        ];
+        if let Some((_, what)) = given.iter().find(|g| g.0) {
+            return Err(format!("--input DIR replays a simulate directory: {what} does not apply to it"));
+        }
+    }
     // a simulated run is decoded and scored with its own unit's config
     // unless told otherwise (another part's scales and rate decode garbage)
     let run_config = a.input.as_ref().map(|d| d.join("config.toml")).filter(|p| a.seeds.is_none() && p.is_file());
@@ -204,10 +238,19 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
         Some(p) => Config::load(p).map_err(|e| e.to_string())?,
         None => Config::default(),
     };
-    if a.real.peers && a.seeds.is_none() {
-        return Err("--peers runs VQF and Fusion beside ours with --seeds, VQF with --reference or --realdata; \
-                    not on a simulate directory (--input DIR)"
-            .into());
+    let mut note = String::new();
+    if let (Some(dir), None, None) = (&a.input, &a.config, &run_config) {
+        let p = cfg.profile();
+        note = format!(
+            "note: {} has no config.toml and no --config was given: the built-in defaults are used (profile {}, {} Hz, mode {}, thermal curve {}, mounting {:?})\n",
+            dir.display(),
+            p.name,
+            p.rate_hz,
+            cfg.estimator.mode.name(),
+            if cfg.thermal.enabled { "on" } else { "off" },
+            cfg.mounting.rotation
+        );
+        eprint!("{note}");
     }
     let o = EvalOptions { score_from: a.score_from, ablation: a.ablation, out: a.out.clone(), peers: a.real.peers };
     let text = match (&a.input, &a.seeds) {
@@ -215,12 +258,13 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
         (None, Some(s)) => {
             let sc = a.scenario.as_deref().ok_or("--seeds needs --scenario")?;
             crate::sim::cli::check_scenario(sc, a.hard, a.duration, &cfg.input.profile)?;
+            crate::sim::cli::check_size(sc, a.hard, a.duration, &cfg.input.profile, crate::sim::cli::Budget::Memory)?;
             let mut so = SimOptions::new(sc, 0);
             so.hard = a.hard;
             so.power_on_moving = a.power_on_moving;
             so.speed = a.speed;
             so.duration = a.duration;
-            so.thermal_error = a.thermal_error;
+            so.thermal_error = a.thermal_error.unwrap_or(DEFAULT_THERMAL_ERROR);
             if let Some(p) = &a.ranges {
                 let text = crate::textfile::read(p).map_err(|e| format!("--ranges {}: {e}", p.display()))?;
                 // refused here, with the file's name, not once per seed
@@ -232,6 +276,6 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
         }
         _ => return Err("evaluate needs --input DIR or --seeds A..B --scenario NAME".into()),
     };
-    print!("{text}");
+    print!("{note}{text}");
     Ok(())
 }

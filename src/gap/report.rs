@@ -169,7 +169,7 @@ pub(crate) fn write_outputs(
     let paths: Vec<PathBuf> = names.iter().map(|n| dir.join(n)).collect();
     let outs: Vec<&Path> = paths.iter().map(|p| p.as_path()).collect();
     outfile::refuse_inputs_as_outputs(&[&o.measured, &o.truth, &o.model], &outs)?;
-    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    outfile::create_dir(dir).map_err(|e| format!("--out {}: {e}", dir.display()))?;
     let write = |p: &Path, bytes: &[u8]| outfile::write_atomic(p, bytes).map_err(io(p));
     write(&paths[0], model.to_toml().as_bytes())?;
     write(&paths[1], render_md(report, o).as_bytes())?;

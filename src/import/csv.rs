@@ -4,7 +4,9 @@
 //! ignored and listed). `t` (s), `gx..gz` (deg/s) and `ax..az` (g, specific
 //! force) are required; `mx,my,mz` (gauss, all three or none) and `temp`
 //! (deg C) may be absent, or present with every value empty. A value is a
-//! finite number; anything else is an error naming the line and the column.
+//! finite number within its column's physical range ([`RANGES`]: gyro
+//! +-10000 deg/s, accel +-1000 g, magn +-100 gauss, temp -100..200 deg C);
+//! anything else is an error naming the line and the column.
 //! Gzip input (`.gz`) is recognised by its magic bytes, whatever the name.
 
 use std::fs::File;
@@ -141,14 +143,44 @@ impl ImuCsv {
     }
 }
 
-/// Parse one field: empty -> None, a finite number -> Some, else an error.
-fn field(s: &str, name: &str, path: &str, no: u64) -> Result<Option<f64>, String> {
+/// The physical range of each column (`t` any finite number): beyond any
+/// real part's range with a wide margin. The fastest MEMS gyros measure
+/// +-4000 deg/s, high-g accelerometers +-400 g, magnetometers +-50 gauss
+/// (Earth's field is 0.25..0.65); parts work from -55 to 125 deg C.
+pub const RANGES: [(&str, f64, f64, &str); 4] = [
+    ("gx,gy,gz", -10_000.0, 10_000.0, "deg/s"),
+    ("ax,ay,az", -1000.0, 1000.0, "g"),
+    ("mx,my,mz", -100.0, 100.0, "gauss"),
+    ("temp", -100.0, 200.0, "deg C"),
+];
+
+/// The range of column `k` of [`COLUMNS`] (none for `t`).
+fn range_of(k: usize) -> Option<(f64, f64, &'static str)> {
+    let r = match k {
+        1..=3 => RANGES[0],
+        4..=6 => RANGES[1],
+        7..=9 => RANGES[2],
+        10 => RANGES[3],
+        _ => return None,
+    };
+    Some((r.1, r.2, r.3))
+}
+
+/// Parse one field: empty -> None, a finite number within the column's
+/// physical range -> Some, else an error naming the line and column.
+fn field(s: &str, k: usize, path: &str, no: u64) -> Result<Option<f64>, String> {
+    let name = COLUMNS[k];
     let s = s.trim();
     if s.is_empty() {
         return Ok(None);
     }
     match s.parse::<f64>() {
-        Ok(v) if v.is_finite() => Ok(Some(v)),
+        Ok(v) if v.is_finite() => match range_of(k) {
+            Some((lo, hi, unit)) if !(lo..=hi).contains(&v) => {
+                Err(format!("{path} line {no}, column {name}: {s} {unit} is beyond any real part's range (want {lo}..{hi} {unit})"))
+            }
+            _ => Ok(Some(v)),
+        },
         Ok(v) => Err(format!("{path} line {no}, column {name}: {v} is not a finite number")),
         Err(_) => Err(format!("{path} line {no}, column {name}: not a number: {s:?}")),
     }
@@ -158,12 +190,27 @@ fn field(s: &str, name: &str, path: &str, no: u64) -> Result<Option<f64>, String
 pub fn read_imu_csv(path: &Path, axes: &AxesMap) -> Result<ImuCsv, String> {
     let p = path.display().to_string();
     let mut rd = open_text(path)?;
+    read_imu_csv_from(&mut rd, &p, axes)
+}
+
+/// [`read_imu_csv`] from a reader (`p` names it in errors).
+pub fn read_imu_csv_from(rd: &mut dyn BufRead, p: &str, axes: &AxesMap) -> Result<ImuCsv, String> {
+    let p = p.to_string();
     let mut buf = String::new();
+    let mut bytes = Vec::new();
     let mut no: u64 = 0;
     let mut next_line = |buf: &mut String, no: &mut u64| -> Result<bool, String> {
         buf.clear();
-        let n = rd.read_line(buf).map_err(|e| format!("{p} line {}: {e}", *no + 1))?;
+        bytes.clear();
+        let n = rd.read_until(b'\n', &mut bytes).map_err(|e| format!("{p} line {}: {e}", *no + 1))?;
         *no += 1;
+        match std::str::from_utf8(&bytes) {
+            Ok(s) => buf.push_str(s),
+            Err(e) => {
+                let t = crate::textfile::not_text(&bytes, e.valid_up_to());
+                return Err(format!("{p} line {no}, {}", t.replace("line 1, ", "")));
+            }
+        }
         while buf.ends_with('\n') || buf.ends_with('\r') {
             buf.pop();
         }
@@ -215,7 +262,7 @@ pub fn read_imu_csv(path: &Path, axes: &AxesMap) -> Result<ImuCsv, String> {
         }
         for k in 0..11 {
             vals[k] = match col[k] {
-                Some(i) => field(fields[i], COLUMNS[k], &p, no)?,
+                Some(i) => field(fields[i], k, &p, no)?,
                 None => None,
             };
         }
@@ -327,6 +374,16 @@ mod tests {
         assert_eq!(c.gyro[0], [1.0, -2.0, -3.0]);
         assert_eq!(c.accel[0], [0.5, 0.0, 1.0]);
         assert_eq!(c.ignored, vec!["extra".to_string()]);
+    }
+
+    #[test]
+    fn a_value_beyond_any_part_is_refused_with_its_line_and_column() {
+        let d = tempfile::tempdir().unwrap();
+        for (row, col) in [("0.01,1e300,2,3,0,0,-1,25", "gx"), ("0.01,1,2,3,0,0,-2000,25", "az"), ("0.01,1,2,3,0,0,-1,900", "temp")] {
+            let p = write(d.path(), "a.csv", &format!("t,gx,gy,gz,ax,ay,az,temp\n0,1,2,3,0,0,-1,25\n{row}\n"));
+            let e = read_imu_csv(&p, &AxesMap::IDENTITY).unwrap_err();
+            assert!(e.contains(&format!("line 3, column {col}")) && e.contains("beyond any real part's range"), "{e}");
+        }
     }
 
     #[test]

@@ -55,6 +55,44 @@ fn max_abs3(v: &[[f64; 3]]) -> f64 {
     v.iter().flat_map(|x| x.iter()).fold(0.0f64, |m, x| m.max(x.abs()))
 }
 
+/// Channel `k`'s values (gyro, accel, magn, temperature about `offset`)
+/// with their line and axis column.
+fn channel(data: &ImuCsv, k: usize, offset: f64) -> Vec<(f64, u64, &'static str)> {
+    let v3 = |v: &[[f64; 3]], names: [&'static str; 3]| -> Vec<(f64, u64, &'static str)> {
+        v.iter().zip(&data.line).flat_map(|(x, l)| (0..3).map(move |i| (x[i].abs(), *l, names[i]))).collect()
+    };
+    match k {
+        0 => v3(&data.gyro, ["gx", "gy", "gz"]),
+        1 => v3(&data.accel, ["ax", "ay", "az"]),
+        2 => data.magn.as_deref().map(|m| v3(m, ["mx", "my", "mz"])).unwrap_or_default(),
+        _ => data.temp.as_deref().unwrap_or_default().iter().zip(&data.line).map(|(t, l)| ((t - offset).abs(), *l, "temp")).collect(),
+    }
+}
+
+/// Refuse an auto scale that a few outliers made so coarse that the rest
+/// of the channel is erased: 99 % of its values within one LSB of 0 while
+/// its largest value set the scale. The error names the largest value's
+/// line and column (the CSV's names, before `--axes`).
+fn erased_by_outlier(data: &ImuCsv, k: usize, lsb: f64, offset: f64) -> Result<(), String> {
+    let mut v = channel(data, k, offset);
+    if v.is_empty() {
+        return Ok(());
+    }
+    let (max, line, col) = v.iter().copied().fold((0.0, 0, ""), |m, x| if x.0 > m.0 { x } else { m });
+    let at = ((v.len() as f64 * 0.99) as usize).min(v.len() - 1);
+    let q = *v.select_nth_unstable_by(at, |a, b| a.0.total_cmp(&b.0)).1;
+    if q.0 > 0.0 && lsb > q.0 {
+        let unit = ["deg/s", "g", "gauss", "deg C"][k];
+        return Err(format!(
+            "line {line}, column {col}: {max} {unit} is {:.0} times the channel's 99th percentile ({} {unit}): scaled to it, the LSB would be {lsb} {unit} \
+             and 99 % of the channel's values would round to 0 or +-1 LSB. An outlier? Remove the line, or give --profile",
+            max / q.0,
+            q.0
+        ));
+    }
+    Ok(())
+}
+
 /// Choose the scales: the profile's LSB where it covers the data, the finest
 /// LSB with headroom otherwise (or without a profile).
 pub fn choose_scales(data: &ImuCsv, profile: Option<&str>) -> Result<Scales, String> {
@@ -81,6 +119,7 @@ pub fn choose_scales(data: &ImuCsv, profile: Option<&str>) -> Result<Scales, Str
             let floor = [GYRO_LSB.0, ACCEL_LSB.0, MAGN_LSB.0, TEMP_LSB.0][k];
             chosen[k] = auto_lsb(max[k]).max(floor);
             source[k] = ScaleSource::Auto;
+            erased_by_outlier(data, k, chosen[k], p.temp_offset)?;
         }
     }
     p.gyro_lsb = chosen[0];
@@ -154,6 +193,14 @@ pub fn plan_counter(data: &ImuCsv, rate: Option<f64>, path: &str) -> Result<Timi
             }
         };
         index.push(i);
+    }
+    if !estimated && crowded * 2 > t.len() as u64 {
+        return Err(format!(
+            "{path}: --rate {rate_hz} Hz: {crowded} of the {} samples are closer than half a period (1/{rate_hz} s) to the one before; \
+             the recording's t says about {:.6} Hz (leave --rate out to take it from t)",
+            t.len(),
+            (t.len() - 1) as f64 / (t[t.len() - 1] - t[0])
+        ));
     }
     Ok(Timing { rate_hz, estimated, index, gaps, lost, crowded })
 }
@@ -246,9 +293,10 @@ pub fn write_log<W: Write>(
     let werr = |e: std::io::Error| format!("writing the log: {e}");
     for k in 0..data.len() {
         let t_abs = epoch_us as f64 + data.t[k] * 1e6;
-        if !(0.0..1.8e19).contains(&t_abs) {
+        // replay reads at most twelve digits of seconds
+        if !(0.0..1e18).contains(&t_abs) {
             return Err(format!(
-                "line {}, column t: {} s gives a log timestamp before 1970 or too far ahead (--epoch {} s)",
+                "line {}, column t: {} s gives a log timestamp before 1970 or beyond 999999999999 s, the most a candump log holds (--epoch {} s)",
                 data.line[k],
                 data.t[k],
                 epoch_us / 1_000_000

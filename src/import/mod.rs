@@ -34,7 +34,7 @@ pub mod encode;
 
 use crate::config::Config;
 use crate::outfile::{refuse_inputs_as_outputs, OutFile};
-pub use csv::{open_text, read_imu_csv, AxesMap, ImuCsv};
+pub use csv::{open_text, read_imu_csv, read_imu_csv_from, AxesMap, ImuCsv};
 pub use encode::{choose_scales, plan_counter, write_log, LogStats, Merge, ScaleSource, Scales, Timing};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -49,8 +49,9 @@ pub struct ImportArgs {
     /// The candump -l log to write. Required.
     #[arg(long, value_name = "OUT.log")]
     pub out: PathBuf,
-    /// Sample rate, Hz. Default: 1 / the median spacing of t.
-    #[arg(long, value_name = "HZ")]
+    /// Sample rate, Hz, 1..100000 (the config's [input] rate_hz range).
+    /// Default: 1 / the median spacing of t.
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true, value_parser = parse_rate)]
     pub rate: Option<f64>,
     /// Use this profile's scales where they cover the data (adis16448,
     /// adis16405, adis16465-1). Default: the finest LSB per channel whose
@@ -71,8 +72,9 @@ pub struct ImportArgs {
     /// Interface name on the IMU's lines.
     #[arg(long, default_value = "can0")]
     pub iface: String,
-    /// Log time of t = 0, s since 1970.
-    #[arg(long, default_value_t = crate::sim::LOG_EPOCH_S)]
+    /// Log time of t = 0, s since 1970: 0..9999999999 (up to the year 2286,
+    /// the ten digits candump writes).
+    #[arg(long, default_value_t = crate::sim::LOG_EPOCH_S, allow_negative_numbers = true, value_parser = parse_epoch)]
     pub epoch: u64,
     /// Leave out the samples before this t (s, the recording's clock), and
     /// the merged log's lines before the first sample kept: the unit powered
@@ -80,6 +82,31 @@ pub struct ImportArgs {
     /// sample.
     #[arg(long, value_name = "S", allow_hyphen_values = true)]
     pub from: Option<f64>,
+}
+
+/// The latest `--epoch`, s since 1970 (the year 2286): the ten digits of
+/// seconds candump writes; replay reads at most twelve.
+pub const MAX_EPOCH_S: u64 = 9_999_999_999;
+
+/// clap value parser of `--rate`: a number of Hz within the config's
+/// `[input] rate_hz` range.
+pub fn parse_rate(s: &str) -> Result<f64, String> {
+    let (lo, hi) = crate::config::RATE_HZ;
+    let v: f64 = s.trim().parse().map_err(|_| format!("{s:?} is not a number of Hz (want {lo}..{hi} Hz)"))?;
+    if !(v.is_finite() && (lo..=hi).contains(&v)) {
+        return Err(format!("a sample rate must be within {lo}..{hi} Hz (the config's [input] rate_hz range), got {s}"));
+    }
+    Ok(v)
+}
+
+/// clap value parser of `--epoch`: whole seconds since 1970, 0..=[`MAX_EPOCH_S`].
+pub fn parse_epoch(s: &str) -> Result<u64, String> {
+    let want = format!("want whole seconds since 1970, 0..={MAX_EPOCH_S} (up to the year 2286)");
+    match s.trim().parse::<u64>() {
+        Ok(v) if v <= MAX_EPOCH_S => Ok(v),
+        Ok(_) => Err(format!("{s} is too far ahead: {want}")),
+        Err(_) => Err(format!("{s:?}: {want}")),
+    }
 }
 
 /// Options of an import (the args without the output paths).
@@ -110,9 +137,10 @@ impl Default for ImportOptions {
 impl ImportOptions {
     fn check(&self) -> Result<(), String> {
         if let Some(r) = self.rate {
-            if !(r.is_finite() && r > 0.0) {
-                return Err(format!("--rate must be a positive number of Hz, got {r}"));
-            }
+            parse_rate(&r.to_string()).map_err(|e| format!("--rate: {e}"))?;
+        }
+        if self.epoch > MAX_EPOCH_S {
+            return Err(format!("--epoch {}: {}", self.epoch, parse_epoch(&self.epoch.to_string()).unwrap_err()));
         }
         if !self.axes.is_rotation() {
             return Err("--axes: the map is a reflection (it would turn a right-handed frame left-handed); flip one more sign".into());
@@ -255,7 +283,7 @@ pub fn import_to<W: Write>(csv: &Path, o: &ImportOptions, merge: Option<Merge<'_
             return Err(format!("{src}: no sample at or after --from {f} s (the recording ends at t = {end} s)"));
         }
     }
-    let scales = choose_scales(&data, o.profile.as_deref())?;
+    let scales = choose_scales(&data, o.profile.as_deref()).map_err(|e| if e.starts_with("line ") { format!("{src} {e}") } else { e })?;
     let timing = plan_counter(&data, o.rate, &src)?;
     let merge = merge.map(|m| Merge { drop_before: o.from.is_some(), ..m });
     let log = write_log(out, &data, &scales, &timing, o.epoch * 1_000_000, &o.iface, merge).map_err(|e| {

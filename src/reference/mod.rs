@@ -61,6 +61,7 @@ pub struct ReferenceArgs {
     /// first S seconds (0: no mount), s. Default: the first 5 s, and only if
     /// they look like rest (else no mount: a mount taken in motion holds the
     /// motion). Given, the mount is taken from them whatever they look like.
+    /// Range: 0 up to the log's length (a window past its end is refused).
     #[arg(long, value_name = "S")]
     pub align_s: Option<f64>,
     /// With --realdata: power both estimators on S seconds into each
@@ -204,7 +205,17 @@ pub fn evaluate_with(samples: &[Sample], ours: Ours, cfg: &Config, r: &Reference
     let period = 1.0 / cfg.profile().rate_hz;
     let ts = sample_times(samples, period);
     let refq = r.at_times(&ts, o.offset);
+    let end = ts.last().copied().unwrap_or(0.0);
+    if o.skip >= end {
+        return Err(format!("--score-from {} s is at or after the end of the log ({end:.1} s): nothing to score", o.skip));
+    }
     let w = alignment_window(r, o.align_s, o.offset)?;
+    if o.force_align && w.estimate_mount && !w.rest_phase && w.t1 > end {
+        return Err(format!(
+            "--align-s {} s: the mount window {:.1}..{:.1} s reaches past the end of the log ({end:.1} s); it must lie within the recording",
+            o.align_s, w.t0, w.t1
+        ));
+    }
     let mut a = align(samples, &ts, &refq, &w)?;
     if w.estimate_mount && !w.rest_phase && !a.looks_at_rest && !o.force_align {
         // no rest phase, and the first seconds are not at rest either: a
@@ -381,7 +392,7 @@ impl Evaluation {
 
     /// Write `report.json` and `errors.svg` into `dir` (created).
     pub fn write(&self, dir: &Path, input: &str, reference: &str) -> Result<(), String> {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        crate::outfile::create_dir(dir).map_err(|e| format!("--out {}: {e}", dir.display()))?;
         let json = serde_json::to_string_pretty(&self.report(input, reference)).map_err(|e| e.to_string())?;
         let p = dir.join("report.json");
         crate::outfile::write_atomic(&p, json.as_bytes()).map_err(|e| format!("{}: {e}", p.display()))?;
@@ -400,6 +411,14 @@ pub fn evaluate_reference(cfg: &Config, log: &Path, reference: &Path, out: Optio
     let outs: Vec<&Path> = outs.iter().map(PathBuf::as_path).collect();
     crate::outfile::refuse_inputs_as_outputs(&[log, reference], &outs)?;
     let name = log.display().to_string();
+    if log.is_dir() {
+        return Err(format!(
+            "--input {name} is a directory: with --reference, --input is a candump log (a simulate directory is scored without --reference)"
+        ));
+    }
+    if reference.is_dir() {
+        return Err(format!("--reference {} is a directory: want a CSV t,roll,pitch,yaw[,valid][,rest]", reference.display()));
+    }
     let file = std::fs::File::open(log).map_err(|e| format!("cannot open {name}: {e}"))?;
     let d = decode(file, cfg, &name)?;
     let file = std::fs::File::open(log).map_err(|e| format!("cannot open {name}: {e}"))?;

@@ -150,7 +150,7 @@ pub fn run(dir: &Path, base: &Config, config_label: &str, out: Option<&Path>, o:
         let mut rows = Vec::new();
         for r in &recs {
             let d = od.join(&r.name);
-            std::fs::create_dir_all(&d).map_err(|e| format!("{}: {e}", d.display()))?;
+            crate::outfile::create_dir(&d).map_err(|e| format!("{}: {e}", d.display()))?;
             let w = |name: &str, bytes: &[u8]| write_atomic(&d.join(name), bytes).map_err(|e| format!("{}/{name}: {e}", d.display()));
             w("imu.log", &r.log)?;
             w("import.toml", r.import.snippet.as_bytes())?;

@@ -55,8 +55,14 @@ fn number(s: &str, name: &str, path: &str, no: u64) -> Result<f64, String> {
 pub fn read_reference(path: &Path) -> Result<Reference, String> {
     let p = path.display().to_string();
     let mut rd = open_text(path)?;
-    let mut text = String::new();
-    std::io::Read::read_to_string(&mut rd, &mut text).map_err(|e| format!("{p}: {e}"))?;
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut rd, &mut bytes).map_err(|e| format!("{p}: {e}"))?;
+    let text = crate::textfile::from_bytes(bytes).map_err(|e| format!("{p}: {e}"))?;
+    parse_reference(&text, &p)
+}
+
+/// [`read_reference`] of text (`p` names it in errors).
+pub fn parse_reference(text: &str, p: &str) -> Result<Reference, String> {
     let mut lines = text.lines().enumerate();
     let header = match lines.next() {
         Some((_, h)) => h,
@@ -91,16 +97,16 @@ pub fn read_reference(path: &Path) -> Result<Reference, String> {
             return Err(format!("{p} line {no}: {} fields, the header has {ncol}", f.len()));
         }
         let get = |k: usize| col[k].map(|c| f[c]).unwrap_or("");
-        let t = number(get(0), "t", &p, no)?;
+        let t = number(get(0), "t", p, no)?;
         if let Some(prev) = r.rows.last() {
             if t <= prev.t {
                 return Err(format!("{p} line {no}, column t: time {t} s is not after the previous line's {} s", prev.t));
             }
         }
-        let valid = if col[4].is_some() { flag(get(4), "valid", &p, no)? } else { true };
-        let rest = if col[5].is_some() { flag(get(5), "rest", &p, no)? } else { false };
+        let valid = if col[4].is_some() { flag(get(4), "valid", p, no)? } else { true };
+        let rest = if col[5].is_some() { flag(get(5), "rest", p, no)? } else { false };
         let att = if valid {
-            Some([number(get(1), "roll", &p, no)?, number(get(2), "pitch", &p, no)?, number(get(3), "yaw", &p, no)?])
+            Some([number(get(1), "roll", p, no)?, number(get(2), "pitch", p, no)?, number(get(3), "yaw", p, no)?])
         } else {
             None
         };

@@ -45,7 +45,9 @@ pub struct SimulateArgs {
     pub hard: bool,
     /// Duration of the run, s (> 0). Default: the scenario's (static 300,
     /// chamber 1800, paper and vehicle 800, urban 400, smooth and crawl 600,
-    /// smooth --hard 1000).
+    /// smooth --hard 1000). At most 10 million samples (about 3.9 GB of
+    /// files): 48828 s of adis16448, 12207 s of adis16405, 5000 s of
+    /// adis16465-1; a longer run is refused up front with its estimate.
     #[arg(long, value_name = "S", allow_negative_numbers = true, value_parser = positive_seconds)]
     pub duration: Option<f64>,
     /// Part profile (LSBs and sample rate of the log): adis16448, adis16405 or adis16465-1.
@@ -116,6 +118,74 @@ pub fn fraction(s: &str) -> Result<f64, String> {
     Ok(v)
 }
 
+/// The most samples `simulate` writes in one run: at about
+/// [`FILE_BYTES_PER_SAMPLE`] bytes a sample (imu.log, truth.csv, bias.csv,
+/// vehicle.csv) 10 million samples are about 3.9 GB of files; 13.5 h of an
+/// adis16448 (204.8 Hz), 3.4 h of an adis16405 (819.2 Hz), 83 min of an
+/// adis16465-1 (2000 Hz). A longer `--duration` is refused before anything
+/// is written, with its estimate.
+pub const MAX_SIMULATE_SAMPLES: f64 = 10e6;
+/// The bytes of files one simulated sample takes, about (static 60 s:
+/// 335; the road scenarios' vehicle.csv and wheel speeds add some 60).
+pub const FILE_BYTES_PER_SAMPLE: f64 = 390.0;
+/// The most samples one `evaluate --seeds` run holds in memory (each seed is
+/// simulated, replayed and scored in memory): 4 million, about
+/// [`MEMORY_BYTES_PER_SAMPLE`] bytes each, 1.6 GB; 5.4 h of an adis16448,
+/// 81 min of an adis16405, 33 min of an adis16465-1 (its chamber's
+/// default 1800 s fits).
+pub const MAX_EVALUATE_SAMPLES: f64 = 4e6;
+/// The memory one in-memory sample takes in `evaluate --seeds`, bytes,
+/// about: its truth row, true bias, speed, four bus frames and the estimate
+/// of every case kept for scoring.
+pub const MEMORY_BYTES_PER_SAMPLE: f64 = 400.0;
+
+/// Which command a run's size is checked for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Budget {
+    /// `simulate`: files on disk, [`MAX_SIMULATE_SAMPLES`].
+    Files,
+    /// `evaluate --seeds`: memory, [`MAX_EVALUATE_SAMPLES`].
+    Memory,
+}
+
+fn human_bytes(b: f64) -> String {
+    let units = ["B", "kB", "MB", "GB", "TB", "PB", "EB"];
+    let mut v = b;
+    let mut k = 0;
+    while v >= 1000.0 && k + 1 < units.len() {
+        v /= 1000.0;
+        k += 1;
+    }
+    if v >= 1000.0 {
+        format!("{b:.1e} B")
+    } else {
+        format!("{v:.1} {}", units[k])
+    }
+}
+
+/// Refuse a run longer than the command's documented limit, up front, with
+/// its estimate (number of samples and bytes).
+pub fn check_size(scenario: &str, hard: bool, duration: Option<f64>, profile: &str, budget: Budget) -> Result<(), String> {
+    let Some(p) = builtin_profile(profile) else { return Ok(()) };
+    let d = duration.unwrap_or_else(|| super::scenario::default_duration_of(scenario, hard));
+    let samples = d * p.rate_hz;
+    let (max, per, what, cmd) = match budget {
+        Budget::Files => (MAX_SIMULATE_SAMPLES, FILE_BYTES_PER_SAMPLE, "of files", "simulate"),
+        Budget::Memory => (MAX_EVALUATE_SAMPLES, MEMORY_BYTES_PER_SAMPLE, "of memory per seed", "evaluate --seeds"),
+    };
+    if samples > max {
+        return Err(format!(
+            "--duration {d} s is {samples:.3e} samples of {profile} at {} Hz, about {} {what}: over {cmd}'s limit of {max:.0e} samples \
+             ({:.0} s at this rate, about {})",
+            p.rate_hz,
+            human_bytes(samples * per),
+            max / p.rate_hz,
+            human_bytes(max * per)
+        ));
+    }
+    Ok(())
+}
+
 /// Refuse arguments that do not fit the scenario (shared with `evaluate --seeds`).
 pub fn check_scenario(scenario: &str, hard: bool, duration: Option<f64>, profile: &str) -> Result<(), String> {
     if !super::scenario::SCENARIOS.contains(&scenario) {
@@ -139,6 +209,7 @@ pub fn check_scenario(scenario: &str, hard: bool, duration: Option<f64>, profile
 impl SimulateArgs {
     pub fn options(&self) -> Result<SimOptions, String> {
         check_scenario(&self.scenario, self.hard, self.duration, &self.profile)?;
+        check_size(&self.scenario, self.hard, self.duration, &self.profile, Budget::Files)?;
         let mut o = SimOptions::new(&self.scenario, self.seed);
         o.hard = self.hard;
         o.duration = self.duration;
@@ -178,7 +249,7 @@ pub fn run(a: &SimulateArgs) -> Result<(), String> {
     let inputs = a.inputs();
     check_destinations(&inputs, &FILES.map(|f| a.out.join(f)))?;
     let created = !a.out.exists();
-    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    crate::outfile::create_dir(&a.out).map_err(|e| format!("--out {}: {e}", a.out.display()))?;
     let r = simulate_into(a, &o, &inputs);
     if r.is_err() && created {
         let _ = std::fs::remove_dir(&a.out); // only when still empty
@@ -255,5 +326,23 @@ mod tests {
         assert!(check_scenario("vehicel", false, None, "adis16448").unwrap_err().contains("known: static"));
         assert!(check_scenario("static", false, Some(0.001), "adis16448").unwrap_err().contains("one sample"));
         assert!(check_scenario("static", false, None, "adis9").unwrap_err().contains("unknown profile"));
+    }
+
+    #[test]
+    fn a_run_over_the_limit_is_refused_with_its_estimate() {
+        let e = check_size("static", false, Some(1e12), "adis16448", Budget::Files).unwrap_err();
+        assert!(e.contains("2.048e14 samples") && e.contains("limit of 1e7 samples") && e.contains("PB"), "{e}");
+        let e = check_size("static", false, Some(1e12), "adis16448", Budget::Memory).unwrap_err();
+        assert!(e.contains("of memory") && e.contains("limit of 4e6"), "{e}");
+        // every scenario's default duration fits at every profile
+        for sc in crate::sim::scenario::SCENARIOS {
+            for hard in [false, true] {
+                for p in crate::adis::BUILTIN_PROFILES {
+                    check_size(sc, hard, None, p, Budget::Files).unwrap();
+                    check_size(sc, hard, None, p, Budget::Memory).unwrap();
+                }
+            }
+        }
+        check_size("static", false, Some(48_000.0), "adis16448", Budget::Files).unwrap();
     }
 }

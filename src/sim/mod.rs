@@ -544,7 +544,7 @@ fn io_err(p: &Path) -> impl Fn(std::io::Error) -> String + '_ {
 /// Every file is written under a temporary name and renamed when complete.
 pub fn simulate(o: &SimOptions, dir: &Path) -> Result<SimFiles, String> {
     let mut run = prepare(o)?;
-    std::fs::create_dir_all(dir).map_err(io_err(dir))?;
+    crate::outfile::create_dir(dir).map_err(io_err(dir))?;
     let create = |name: &str| -> Result<(PathBuf, OutFile), String> {
         let p = dir.join(name);
         let f = OutFile::create(&p).map_err(io_err(&p))?;
@@ -557,7 +557,7 @@ pub fn simulate(o: &SimOptions, dir: &Path) -> Result<SimFiles, String> {
     let mut vehicle = if is_road { Some(create("vehicle.csv")?) } else { None };
     let mut log = LogWriter::new(log_f, "vcan0");
     truth.write_all(TRUTH_HEADER.as_bytes()).map_err(io_err(&truth_p))?;
-    bias.write_all(b"t,bx,by,bz\n").map_err(io_err(&bias_p))?;
+    bias.write_all(BIAS_HEADER.as_bytes()).map_err(io_err(&bias_p))?;
     if let Some((p, f)) = vehicle.as_mut() {
         f.write_all(VEHICLE_HEADER.as_bytes()).map_err(io_err(p))?;
     }
@@ -619,55 +619,78 @@ pub struct TruthRow {
     pub temp: f64,
 }
 
-fn parse_floats<const N: usize>(line: &str, path: &Path, no: usize) -> Result<[f64; N], String> {
-    let mut out = [0.0; N];
-    let mut it = line.split(',');
-    for o in out.iter_mut() {
-        let s = it.next().ok_or_else(|| format!("{}:{no}: want {N} columns", path.display()))?;
-        *o = s.trim().parse().map_err(|_| format!("{}:{no}: bad number {s:?}", path.display()))?;
+/// A simulator CSV (truth.csv, bias.csv, vehicle.csv) parsed from `text`:
+/// the header must be `header`; every value a finite number (an error names
+/// the file, line and column); `t`, the first column, strictly increasing
+/// (two rows swapped are refused where time first goes back).
+pub fn parse_table<const N: usize>(text: &str, path: &Path, header: &str) -> Result<Vec<[f64; N]>, String> {
+    let p = path.display();
+    let names: Vec<&str> = header.trim().split(',').collect();
+    debug_assert_eq!(names.len(), N);
+    let mut lines = text.lines();
+    if lines.next().map(|h| h.trim().trim_start_matches('\u{feff}')) != Some(header.trim()) {
+        return Err(format!("{p} line 1 (header): want {}", header.trim()));
     }
-    if it.next().is_some() {
-        return Err(format!("{}:{no}: want {N} columns", path.display()));
+    let mut out: Vec<[f64; N]> = Vec::new();
+    for (i, l) in lines.enumerate() {
+        let no = i + 2;
+        if l.trim().is_empty() {
+            continue;
+        }
+        let mut row = [0.0; N];
+        let mut it = l.split(',');
+        for (k, o) in row.iter_mut().enumerate() {
+            let s = it.next().ok_or_else(|| format!("{p} line {no}: {k} fields, want {N} ({})", header.trim()))?.trim();
+            *o = match s.parse::<f64>() {
+                Ok(v) if v.is_finite() => v,
+                Ok(_) => return Err(format!("{p} line {no}, column {}: {s} is not a finite number", names[k])),
+                Err(_) => return Err(format!("{p} line {no}, column {}: not a number: {s:?}", names[k])),
+            };
+        }
+        if it.next().is_some() {
+            return Err(format!("{p} line {no}: {} fields, want {N} ({})", l.split(',').count(), header.trim()));
+        }
+        if let Some(prev) = out.last() {
+            if row[0] <= prev[0] {
+                return Err(format!(
+                    "{p} line {no}, column t: time {} s is not after the previous row's {} s (rows out of order?)",
+                    row[0], prev[0]
+                ));
+            }
+        }
+        out.push(row);
     }
     Ok(out)
 }
 
+fn read_text(path: &Path) -> Result<String, String> {
+    crate::textfile::read(path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The header of bias.csv.
+pub const BIAS_HEADER: &str = "t,bx,by,bz\n";
+
 /// Read truth.csv.
 pub fn read_truth(path: &Path) -> Result<Vec<TruthRow>, String> {
-    let text = std::fs::read_to_string(path).map_err(io_err(path))?;
-    let mut lines = text.lines();
-    if lines.next().map(|h| h.trim()) != Some(TRUTH_HEADER.trim()) {
-        return Err(format!("{}: header must be {}", path.display(), TRUTH_HEADER.trim()));
-    }
-    lines
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| {
-            let v = parse_floats::<11>(l, path, i + 2)?;
-            Ok(TruthRow { t: v[0], att: [v[1], v[2], v[3]], rate: [v[4], v[5], v[6]], f: [v[7], v[8], v[9]], temp: v[10] })
-        })
-        .collect()
+    parse_truth(&read_text(path)?, path)
+}
+
+/// [`read_truth`] of text (`path` names it in errors).
+pub fn parse_truth(text: &str, path: &Path) -> Result<Vec<TruthRow>, String> {
+    Ok(parse_table::<11>(text, path, TRUTH_HEADER)?
+        .into_iter()
+        .map(|v| TruthRow { t: v[0], att: [v[1], v[2], v[3]], rate: [v[4], v[5], v[6]], f: [v[7], v[8], v[9]], temp: v[10] })
+        .collect())
 }
 
 /// Read bias.csv: `(t, [bx, by, bz])`.
 pub fn read_bias(path: &Path) -> Result<Vec<(f64, [f64; 3])>, String> {
-    let text = std::fs::read_to_string(path).map_err(io_err(path))?;
-    text.lines()
-        .enumerate()
-        .skip(1)
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| parse_floats::<4>(l, path, i + 1).map(|v| (v[0], [v[1], v[2], v[3]])))
-        .collect()
+    Ok(parse_table::<4>(&read_text(path)?, path, BIAS_HEADER)?.into_iter().map(|v| (v[0], [v[1], v[2], v[3]])).collect())
 }
 
 /// Read vehicle.csv: the truth's speed per sample, m/s (negative reversing).
 pub fn read_vehicle_speed(path: &Path) -> Result<Vec<f64>, String> {
-    let text = std::fs::read_to_string(path).map_err(io_err(path))?;
-    let mut lines = text.lines();
-    if lines.next().map(|h| h.trim()) != Some(VEHICLE_HEADER.trim()) {
-        return Err(format!("{}: header must be {}", path.display(), VEHICLE_HEADER.trim()));
-    }
-    lines.enumerate().filter(|(_, l)| !l.trim().is_empty()).map(|(i, l)| parse_floats::<6>(l, path, i + 2).map(|v| v[1])).collect()
+    Ok(parse_table::<6>(&read_text(path)?, path, VEHICLE_HEADER)?.into_iter().map(|v| v[1]).collect())
 }
 
 /// Read scenario.toml.

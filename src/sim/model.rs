@@ -243,7 +243,7 @@ pub const DELAY_MAX_S: f64 = 1.0;
 fn within(key: &str, v: &[f64], lo: f64, hi: f64, unit: &str) -> Result<(), (String, String)> {
     match v.iter().find(|x| !(x.is_finite() && (lo..=hi).contains(*x))) {
         None => Ok(()),
-        Some(x) => Err((key.to_string(), format!("must be within {lo}..{hi} {unit}, got {x}"))),
+        Some(x) => Err((key.to_string(), format!("must be within {lo}..{hi} {unit}, got {}", crate::config::num(*x)))),
     }
 }
 

@@ -42,7 +42,7 @@ fn err<T>(key: &str, msg: impl Into<String>) -> Result<T, (String, String)> {
 }
 
 /// A number as a user writes it: 1e300 and 1e-9 in exponent form, not 301 digits.
-fn num(v: f64) -> String {
+pub(crate) fn num(v: f64) -> String {
     let a = v.abs();
     if a != 0.0 && a.is_finite() && !(1e-4..1e6).contains(&a) {
         format!("{v:e}")
