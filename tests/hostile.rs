@@ -32,6 +32,41 @@ fn s(p: &Path) -> &str {
 }
 
 /// The names in `dir`, sorted.
+/// Spawn with SIGINT, SIGTERM and SIGHUP at their default action in the
+/// child: a test run under `nohup` (or any parent that ignores SIGHUP)
+/// passes the ignored disposition on, and the program rightly keeps a
+/// signal its caller ignores, so the signal sent would never end it.
+fn spawn_signalable(cmd: &mut Command) -> std::process::Child {
+    use std::os::unix::process::CommandExt;
+    // SAFETY: only async-signal-safe calls between fork and exec.
+    unsafe {
+        cmd.pre_exec(|| {
+            for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+                libc::signal(sig, libc::SIG_DFL);
+            }
+            Ok(())
+        });
+    }
+    cmd.stderr(Stdio::piped()).spawn().unwrap()
+}
+
+/// The child's exit status within 30 s of signal `sig`, else it is killed
+/// and the test fails (never a hang).
+fn wait_or_kill(child: &mut std::process::Child, sig: i32) -> std::process::ExitStatus {
+    let t0 = Instant::now();
+    loop {
+        if let Some(st) = child.try_wait().unwrap() {
+            return st;
+        }
+        if t0.elapsed() > Duration::from_secs(30) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("still running 30 s after signal {sig}");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
 fn names(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
     v.sort();
@@ -165,8 +200,7 @@ fn a_replay_stopped_by_a_signal_leaves_no_temporary_file() {
         mkfifo(&fifo);
         let out = d.path().join("out.log");
         fs::write(&out, b"previous run").unwrap();
-        let mut child =
-            Command::new(bin()).args(["replay", "--input", s(&fifo), "--output", s(&out)]).stderr(Stdio::piped()).spawn().unwrap();
+        let mut child = spawn_signalable(Command::new(bin()).args(["replay", "--input", s(&fifo), "--output", s(&out)]));
         let mut w = fs::OpenOptions::new().write(true).open(&fifo).unwrap();
         w.write_all(&head).unwrap();
         let t0 = Instant::now();
@@ -175,8 +209,8 @@ fn a_replay_stopped_by_a_signal_leaves_no_temporary_file() {
             std::thread::sleep(Duration::from_millis(10));
         }
         assert!(names(d.path()).iter().any(|n| n.starts_with(".out.log.tmp-")), "{:?}", names(d.path()));
-        unsafe { libc::kill(child.id() as i32, sig) };
-        let st = child.wait().unwrap();
+        assert_eq!(unsafe { libc::kill(child.id() as i32, sig) }, 0, "kill {sig}");
+        let st = wait_or_kill(&mut child, sig);
         drop(w);
         use std::os::unix::process::ExitStatusExt;
         assert_eq!(st.signal(), Some(sig), "replay did not end by signal {sig}: {st:?}");
@@ -217,11 +251,8 @@ fn calibrate_never_writes_over_its_config_and_takes_a_run_once() {
 fn a_simulate_stopped_by_a_signal_leaves_its_out_directory_as_it_was() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("s");
-    let mut child = Command::new(bin())
-        .args(["simulate", "--scenario", "vehicle", "--duration", "3000", "--out", s(&out)])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child =
+        spawn_signalable(Command::new(bin()).args(["simulate", "--scenario", "vehicle", "--duration", "3000", "--out", s(&out)]));
     let t0 = Instant::now();
     let writing = || {
         fs::read_dir(&out)
@@ -234,8 +265,8 @@ fn a_simulate_stopped_by_a_signal_leaves_its_out_directory_as_it_was() {
         assert!(t0.elapsed() < Duration::from_secs(20), "simulate never started writing");
         std::thread::sleep(Duration::from_millis(10));
     }
-    unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
-    let st = child.wait().unwrap();
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);
+    let st = wait_or_kill(&mut child, libc::SIGTERM);
     use std::os::unix::process::ExitStatusExt;
     assert_eq!(st.signal(), Some(libc::SIGTERM), "{st:?}");
     assert!(names(&out).is_empty(), "left in --out: {:?}", names(&out));
