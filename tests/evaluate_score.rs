@@ -220,3 +220,21 @@ fn a_car_that_never_stops_takes_no_steady_turn_for_a_standstill() {
     assert!(all.max_err[0] <= 3.0 && all.max_err[1] <= 3.0, "max roll/pitch from 10 s {:?}", all.max_err);
     assert!(man.max_err[0] <= 2.0 && man.max_err[1] <= 2.0, "max roll/pitch in the manoeuvres {:?}", man.max_err);
 }
+
+/// A crawl at 0.5-3 m/s whose quiet moments are taken for stops: once a
+/// standstill has read the bias the gyro holds the tilt, and a quiet
+/// period whose specific force that tilt refuses (a crawl easing off or on)
+/// is not re-levelled onto. `crawl` seed 2 reached 2.30 / 3.22 deg with
+/// the re-level forcing that acceleration into the tilt and the bias.
+#[test]
+fn a_crawl_is_not_re_levelled_onto_its_gentle_accelerations() {
+    let data = RunData::simulate(&SimOptions::new("crawl", 2)).unwrap();
+    let mut c = Config::default();
+    let u = data.unit_config.as_ref().unwrap();
+    c.thermal = u.thermal.clone();
+    c.mounting = u.mounting.clone();
+    let (est, ms) = data.estimates(&c).unwrap();
+    let m = score("x", &data, &est, ms, 10.0);
+    println!("crawl seed 2: max roll/pitch {:?}", m.max_err);
+    assert!(m.max_err[0] <= 1.0 && m.max_err[1] <= 1.5, "max roll/pitch {:?}", m.max_err);
+}

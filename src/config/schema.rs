@@ -446,6 +446,10 @@ pub struct MekfConfig {
     pub dwell_s: f64,
     /// Largest bias-corrected rate still counted as quasi-static, deg/s. Default 3.
     pub turn_rate_dps: f64,
+    /// For ablation only: the filter's named situation rules to switch off
+    /// (`src/estimator/mekf/rules.rs`, `gyrocomp evaluate --ablate`).
+    /// Default none: the default filter has every rule on.
+    pub ablate: Vec<String>,
 }
 
 impl Default for MekfConfig {
@@ -481,6 +485,7 @@ impl Default for MekfConfig {
             mag_dip_tol_deg: 6.0,
             dwell_s: 2.0,
             turn_rate_dps: 3.0,
+            ablate: Vec::new(),
         }
     }
 }

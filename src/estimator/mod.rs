@@ -281,6 +281,8 @@ pub fn mekf_params(cfg: &Config) -> MekfParams {
         rest: RestParams::from_config(r),
         g0_window_s: cfg.estimator.g0_window_s,
         speed_aided: cfg.speed.enabled(),
+        // names checked by `Config::validate`
+        off: mekf::RulesOff::from_names(&m.ablate).unwrap_or_default(),
     }
 }
 
@@ -468,7 +470,8 @@ impl Estimator {
                 m.start(&s.accel, &s.magn, bias.map(|b| b * D2R), sig, sigma.is_some());
                 // a car may be moving at power-on: unless it is known not to
                 // be a car, or its wheels will say how fast
-                self.hypotheses = (m.vehicle() && !m.speed_aided()).then(|| Box::new(SpeedHypotheses::new(m)));
+                self.hypotheses =
+                    (m.vehicle() && !m.speed_aided() && m.on(mekf::Rule::SpeedHypotheses)).then(|| Box::new(SpeedHypotheses::new(m)));
                 self.power_on = self.hypotheses.as_ref().map(|_| PowerOnSpeed { speed_ms: 0.0, ended: None });
             }
         }

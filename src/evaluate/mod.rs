@@ -26,6 +26,7 @@
 //! plots; here the options, the ablation cases, the report writing and the
 //! subcommand.
 
+pub mod ablate;
 mod data;
 mod dir;
 mod metrics;
@@ -149,8 +150,9 @@ pub struct EvaluateArgs {
     #[arg(long)]
     pub ablation: bool,
     /// Simulate (in memory) and evaluate these seeds: A..B inclusive, or one
-    /// seed N; at most 10000 seeds. Required unless --input is given; needs --scenario.
-    #[arg(long, value_name = "A..B", requires = "scenario")]
+    /// seed N; at most 10000 seeds. Required unless --input is given; needs
+    /// --scenario (with --ablate: every vehicle family unless --scenario).
+    #[arg(long, value_name = "A..B")]
     pub seeds: Option<String>,
     /// With --seeds: the scenario to simulate (static, chamber, paper,
     /// vehicle, urban, smooth, crawl). Required with --seeds.
@@ -199,12 +201,55 @@ pub struct EvaluateArgs {
         default_value_t = 10.0
     )]
     pub score_from: f64,
+    /// Switch each named situation rule of the default filter off alone
+    /// (`[mekf] ablate`) and print the figures next to the default's: with
+    /// --seeds the worst roll/pitch of the vehicle families (smooth, crawl,
+    /// urban, each parked and powered on moving, smooth --hard, vehicle
+    /// --hard; or only --scenario's), with --realdata the roll/pitch RMS of
+    /// every recording. Off by default.
+    #[arg(long, conflicts_with_all = ["input", "ablation", "peers"])]
+    pub ablate: bool,
+    /// With --ablate: only these rules, a comma list of names (the rules
+    /// and what each does: docs/estimator.md). Default: every rule.
+    #[arg(long, value_name = "LIST", requires = "ablate")]
+    pub rules: Option<String>,
     /// Real data: --reference, --realdata, --peers, --offset, --align-s (`gyrocomp::reference`).
     #[command(flatten)]
     pub real: crate::reference::ReferenceArgs,
 }
 
+/// `--ablate`: the rules switched off one at a time ([`ablate::run`]).
+fn run_ablate(a: &EvaluateArgs) -> Result<(), String> {
+    let cfg = match &a.config {
+        Some(p) => Config::load(p).map_err(|e| e.to_string())?,
+        None => Config::default(),
+    };
+    if a.real.reference.is_some() || a.real.power_on_at.is_some() {
+        return Err("--ablate runs on --seeds (the simulated families) or --realdata DIR".into());
+    }
+    let families = match a.scenario.as_deref() {
+        Some(sc) => {
+            crate::sim::cli::check_scenario(sc, a.hard, a.duration, &cfg.input.profile)?;
+            vec![ablate::Family::new(sc, a.hard, a.power_on_moving)]
+        }
+        None => ablate::families(),
+    };
+    let run = ablate::AblateRun {
+        seeds: a.seeds.as_deref().map(parse_seeds).transpose()?,
+        families,
+        duration: a.duration,
+        realdata: a.real.realdata.as_deref(),
+        rules: ablate::parse_rules(a.rules.as_deref())?,
+        score_from: a.score_from,
+    };
+    print!("{}", ablate::run(&cfg, &run)?);
+    Ok(())
+}
+
 pub fn run(a: &EvaluateArgs) -> Result<(), String> {
+    if a.ablate {
+        return run_ablate(a);
+    }
     if let Some((text, failed)) =
         crate::reference::dispatch(a.config.as_deref(), a.input.as_deref(), a.out.as_deref(), a.score_from, &a.real)?
     {

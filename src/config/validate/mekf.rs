@@ -40,7 +40,8 @@ pub(super) fn mekf(m: &MekfConfig) -> Check {
     within("mekf.mag_norm_tol", m.mag_norm_tol, 1e-3, 100.0, "")?;
     within("mekf.mag_dip_tol_deg", m.mag_dip_tol_deg, 0.01, 180.0, "deg")?;
     within("mekf.dwell_s", m.dwell_s, 0.0, 3600.0, "s")?;
-    within("mekf.turn_rate_dps", m.turn_rate_dps, 1e-3, 1000.0, "deg/s")
+    within("mekf.turn_rate_dps", m.turn_rate_dps, 1e-3, 1000.0, "deg/s")?;
+    crate::estimator::mekf::RulesOff::from_names(&m.ablate).map(|_| ()).map_err(|e| ("mekf.ablate".to_string(), e))
 }
 
 pub(super) fn rest(r: &RestConfig) -> Check {

@@ -144,7 +144,7 @@ impl Mekf {
     /// motion after it, take that as a pull-away, and turn the constraint's
     /// axes when the pull-aways agree on others.
     pub(super) fn watch_pull_aways(&mut self, a: &Accum, still: bool) {
-        if !self.vehicle || a.n == 0 {
+        if !self.vehicle || a.n == 0 || !self.on(Rule::PullAwayAxes) {
             self.pulls.armed = false;
             return;
         }

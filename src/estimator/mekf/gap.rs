@@ -44,7 +44,7 @@ impl Mekf {
                 }
                 self.cov[TH + i][TH + i] += a2;
             }
-            self.heading_open = true;
+            self.heading_open = self.on(Rule::GapHeadingOpen);
             self.lever_pending = true;
         } else {
             for i in 0..3 {

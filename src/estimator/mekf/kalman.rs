@@ -121,7 +121,7 @@ impl Mekf {
         let (t, n) = (a.t, a.n as f64);
         let iso = |q: f64| [[q, 0.0, 0.0], [0.0, q, 0.0], [0.0, 0.0, q]];
         // a hand's motion is not a car's: a free unit keeps `q_accel`
-        if !self.vehicle || t <= 0.0 || a.n == 0 {
+        if !self.vehicle || t <= 0.0 || a.n == 0 || !self.on(Rule::QuietVelocityNoise) {
             return iso(self.p.q_accel);
         }
         let mean = [a.accel[0] / n, a.accel[1] / n, a.accel[2] / n];
@@ -131,7 +131,7 @@ impl Mekf {
         // a knock: vibration beyond any car body's ride within the tick,
         // whose integral is no car's change of speed
         let r2 = self.p.accel_ref * self.p.accel_ref;
-        let shock = (var - (SHOCK_G * G).powi(2)).max(0.0);
+        let shock = if self.on(Rule::KnockNoise) { (var - (SHOCK_G * G).powi(2)).max(0.0) } else { 0.0 };
         let vib = (var / r2).min(1.0);
         let span = (self.p.q_accel - self.p.q_accel_quiet).max(0.0);
         let mut q = iso(self.p.q_accel_quiet + span * (vib + shock / r2));

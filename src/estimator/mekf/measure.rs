@@ -65,7 +65,7 @@ impl Mekf {
         // one-sided, never gated; a real grade a little beyond it costs a
         // pitch error of the excess over the speed only.
         let vmax = self.p.max_vertical_speed;
-        if self.vehicle && vmax > 0.0 && self.v[2].abs() > vmax {
+        if self.vehicle && vmax > 0.0 && self.v[2].abs() > vmax && self.on(Rule::VerticalSpeedBound) {
             let mut h = [0.0; N];
             h[VE + 2] = 1.0;
             let _ = self.update(&h, vmax.copysign(self.v[2]) - self.v[2], VERTICAL_BOUND_SIGMA * VERTICAL_BOUND_SIGMA, gain, f64::INFINITY);
@@ -156,7 +156,7 @@ impl Mekf {
     /// only turns false (the vehicle model left), never true.
     #[inline]
     pub(super) fn learns_level_rate(&self) -> bool {
-        self.vehicle && !self.bias_known && !self.p.speed_aided
+        self.vehicle && !self.bias_known && !self.p.speed_aided && self.on(Rule::LevelRate)
     }
 
     /// The navigation-frame low-passed specific force as gravity (tilt
@@ -177,7 +177,7 @@ impl Mekf {
     pub(super) fn gravity_lp_update(&mut self, gain: Gain, gate: f64) -> [Upd; 2] {
         let (Some(g), Some(nu)) = (self.f_lp, self.gravity_lp_innovation()) else { return [Upd::Skipped; 2] };
         let var = g.tilt_var(self.p.lp_tilt_var, self.p.tilt_motion_share2);
-        let tau = if gain.bias && !self.bias_known { self.p.accel_tau } else { 0.0 };
+        let tau = if gain.bias && !self.bias_known && self.on(Rule::GravityLag) { self.p.accel_tau } else { 0.0 };
         let cl = self.c_lag;
         let mut h = [0.0; N];
         h[TH + 1] = 1.0;
@@ -313,7 +313,7 @@ impl Mekf {
         // the dip is measured with the filter's tilt: a reference taken
         // before a standstill or a saved bias anchored that tilt (powered on
         // while driving) is taken again once one has
-        if self.bias_known && self.mag_ref_weak {
+        if self.bias_known && self.mag_ref_weak && self.on(Rule::MagRefRetake) {
             self.mag_ref = None;
         }
         if self.mag_ref.is_none() {
@@ -332,7 +332,7 @@ impl Mekf {
                     self.mag_dist_s += self.p.tick_s;
                     // a field that stays different for a minute and is steady
                     // at a rest is the new normal (moved car, new mounting)
-                    if at_rest && self.mag_dist_s > 60.0 {
+                    if at_rest && self.mag_dist_s > 60.0 && self.on(Rule::MagNewNormal) {
                         self.mag_ref = Some((nrm, dip));
                         self.mag_dist_s = 0.0;
                     }
@@ -360,7 +360,7 @@ impl Mekf {
         // bias); open it to what the field says, never a lock-out
         if u == Upd::Gated {
             self.heading_refused += self.p.tick_s;
-            if self.heading_refused >= HEADING_REACQUIRE_S {
+            if self.heading_refused >= HEADING_REACQUIRE_S && self.on(Rule::HeadingReacquire) {
                 self.cov[TH + 2][TH + 2] = self.cov[TH + 2][TH + 2].max(nu * nu);
                 self.heading_refused = 0.0;
                 self.counters.reacquired += 1;

@@ -46,12 +46,14 @@ mod kalman;
 mod measure;
 mod motion_model;
 mod params;
+mod rules;
 mod tick;
 mod velocity_belief;
 
 use forward_axis::{PullAways, VehicleAxes};
 use gravity_lp::{GravityLp, LpGains};
 pub use params::{MagUse, MekfParams, Vehicle};
+pub use rules::{Rule, RulesOff};
 
 use super::quat::{self, cross, norm, rotate, rotate_t, Mat3, Quat};
 use super::rest::{GravityRef, RestDetector, RestState};
@@ -525,6 +527,13 @@ impl Mekf {
     /// What the last `step` returned.
     pub fn last_step(&self) -> (u8, u16, f64) {
         self.last_step
+    }
+
+    /// Whether the named situation rule is on (all are, unless switched off
+    /// for ablation: `[mekf] ablate`).
+    #[inline]
+    pub fn on(&self, r: Rule) -> bool {
+        self.p.off.on(r)
     }
 
     /// Whether the vehicle's speed is configured as a measurement.

@@ -36,7 +36,7 @@ impl Mekf {
     /// The vehicle model is in use and `"auto"` may still leave it (IMU only:
     /// with the car's own speed it is a vehicle).
     fn may_leave_vehicle_model(&self) -> bool {
-        self.vehicle && self.p.vehicle == Vehicle::Auto && !self.p.speed_aided
+        self.vehicle && self.p.vehicle == Vehicle::Auto && !self.p.speed_aided && self.on(Rule::LeaveVehicleModel)
     }
 
     /// The unit is not in a vehicle after all. Before a standstill has read
@@ -77,7 +77,7 @@ impl Mekf {
     /// not in a vehicle (the power-on bank keeps it, `hypotheses.rs`).
     /// None when the vehicle model is configured or the speed measured.
     pub fn free_unit_copy(&self) -> Option<Mekf> {
-        if !self.may_leave_vehicle_model() {
+        if !self.may_leave_vehicle_model() || !self.on(Rule::FreeUnitCopy) {
             return None;
         }
         // as `vehicle = false` starts: zero velocity, `init_speed_sigma`

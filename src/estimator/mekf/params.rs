@@ -1,6 +1,7 @@
 //! The filter's settings, in its own units (rad, s, m), and its two
 //! three-way switches (`MagUse`, `Vehicle`).
 
+use super::rules::RulesOff;
 use crate::estimator::rest::RestParams;
 
 /// Whether the magnetometer is used for heading.
@@ -95,4 +96,6 @@ pub struct MekfParams {
     pub rest: RestParams,
     pub g0_window_s: f64,
     pub speed_aided: bool,
+    /// The situation rules switched off (ablation only; none by default).
+    pub off: RulesOff,
 }

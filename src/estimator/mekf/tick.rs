@@ -34,11 +34,12 @@ impl Mekf {
         let wheel = if self.p.speed_aided { self.speed } else { None };
         let wheel_standing = wheel.is_some_and(|v| v.abs() < WHEEL_STANDING);
         self.wheel_standing_s = if wheel_standing { self.wheel_standing_s + t } else { 0.0 };
-        let imu_still = if wheel.is_some() { self.wheel_standing_s >= WHEEL_STANDING_S && a.quiet } else { a.rest };
+        let imu_still =
+            if wheel.is_some() && self.on(Rule::WheelStanding) { self.wheel_standing_s >= WHEEL_STANDING_S && a.quiet } else { a.rest };
         // IMU only, a steady gentle turn looks still too (`turning_at_speed`,
         // `field_turned`)
         let f_mean = [a.accel[0] / n, a.accel[1] / n, a.accel[2] / n];
-        let field_turned = self.field_turned(&a);
+        let field_turned = self.field_turned(&a) && self.on(Rule::FieldTurned);
         let still = imu_still && !a.suspect && (wheel.is_some() || !(field_turned || self.turning_at_speed(&omega, &f_mean)));
         // A stop is a physical event: a car the filter knows to be moving
         // cannot stand without a deceleration the accelerometer measured. A
@@ -59,7 +60,9 @@ impl Mekf {
             self.after_gap = false;
             self.quiet_since_gap = false;
         }
-        let cruising = self.vehicle && !wheel_standing && still && !self.after_gap && self.zero_velocity_nis() > self.p.gate;
+        let after_gap = self.after_gap && self.on(Rule::GapVelocityUnknown);
+        let cruising =
+            self.on(Rule::Cruise) && self.vehicle && !wheel_standing && still && !after_gap && self.zero_velocity_nis() > self.p.gate;
         let at_rest = still && !cruising;
         self.age_velocity(t, at_rest);
         // The paper's policy: what takes the accelerometer for gravity (the
@@ -81,12 +84,17 @@ impl Mekf {
         // held its roll 1.3 deg off for the 100 s to its first rest), the
         // gravity's lag in the model (`gravity_lp_update`) and kept through
         // re-levellings (`relevel_free`).
-        if !self.bias_known && !self.vehicle && !self.tilt_settled && self.gravity_held >= self.p.accel_tau {
+        if self.on(Rule::ProvisionalBias)
+            && !self.bias_known
+            && !self.vehicle
+            && !self.tilt_settled
+            && self.gravity_held >= self.p.accel_tau
+        {
             self.tilt_settled = true;
             // the field's dip, taken with the tilt before it settled, made
             // every later field look disturbed (broad-18 cut 5 s into its
             // motion: heading 75 deg off until its first rest, 33 s on)
-            if self.mag_ref_weak {
+            if self.mag_ref_weak && self.on(Rule::MagRefRetake) {
                 self.mag_ref = None;
             }
             if self.learns_in_motion() {
@@ -107,7 +115,19 @@ impl Mekf {
             } else {
                 self.refused_still = 0.0;
             }
-            if at_rest && self.refused_still >= self.p.relevel_s {
+            // Re-levelled onto only where the filter's own tilt may be the
+            // wrong one: no standstill has read the bias yet (powered on
+            // moving, a turn-on bias of several deg/s), a counter gap hid
+            // what the unit did, or a free unit (a hand's rests are rests).
+            // A car whose bias a standstill has read has had its tilt held
+            // by the gyro since: a quiet period whose specific force that
+            // tilt refuses is a smooth acceleration taken for a stop (a
+            // crawl easing off, a gentle pull-away), and forced in, it put
+            // that acceleration into the tilt and the bias (`crawl` worst
+            // 2.30 / 3.22 deg, `smooth --hard` pitch 3.52; held, 1.16 / 1.83
+            // and 1.85, every other family the same).
+            let tilt_in_doubt = !self.bias_known || !self.vehicle || self.after_gap;
+            if at_rest && tilt_in_doubt && self.refused_still >= self.p.relevel_s && self.on(Rule::Relevel) {
                 self.inject();
                 self.relevel();
                 fl |= flags::RELEVEL;
@@ -129,7 +149,7 @@ impl Mekf {
                 } else {
                     self.level = LevelWindow::default();
                 }
-                if !self.vehicle && self.gravity_refused >= self.p.relevel_s {
+                if !self.vehicle && self.gravity_refused >= self.p.relevel_s && self.on(Rule::RelevelFree) {
                     self.inject();
                     self.relevel_free();
                     fl |= flags::RELEVEL;
@@ -172,7 +192,7 @@ impl Mekf {
                 }
             }
         }
-        if self.nhc_refused >= self.p.relevel_s {
+        if self.nhc_refused >= self.p.relevel_s && self.on(Rule::VelocityReacquire) {
             // The velocity constraints have been refused for long: the
             // velocity, not the vehicle, is wrong. Widen it so they take hold
             // again (the attitude is left alone: it is what they correct).
@@ -189,8 +209,9 @@ impl Mekf {
         // Before a standstill (or a saved state) has shown the bias, a bias
         // beyond the part's range is the filter's divergence, not the part;
         // a bias read at rest is evidence, whatever its size.
-        let lost = self.refused_share > LOST_SHARE;
-        let unbelievable = !self.bias_known
+        let lost = self.refused_share > LOST_SHARE && self.on(Rule::RestartLost);
+        let unbelievable = self.on(Rule::RestartBiasRange)
+            && !self.bias_known
             && !at_rest
             && (0..3).any(|i| (self.bias[i] - pb[i]).abs() > BIAS_LIMIT_SIGMAS * ps[i].max(self.p.init_bias_sigma));
         if lost || unbelievable {
@@ -243,7 +264,7 @@ impl Mekf {
     /// detector while the power-on bank scores its copies (they must make
     /// the same decisions).
     fn turning_at_speed(&self, omega: &[f64; 3], f: &[f64; 3]) -> bool {
-        if !self.vehicle || self.scoring {
+        if !self.vehicle || self.scoring || !self.on(Rule::TurningAtSpeed) {
             return false;
         }
         // the centripetal acceleration in the body frame, g

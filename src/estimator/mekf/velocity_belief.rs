@@ -40,6 +40,9 @@ impl Mekf {
     /// turned by Δψ the bias no longer cancels, and the velocity integrates
     /// `|R(Δψ) − I| b = 2 |sin(Δψ/2)| b`. On a straight road it stays 0.
     pub(super) fn velocity_age_var(&self) -> f64 {
+        if !self.on(Rule::VelocityAge) {
+            return 0.0;
+        }
         let s = self.p.accel_bias_g * G * self.turn_exposure;
         s * s
     }
@@ -64,7 +67,7 @@ impl Mekf {
     /// inside the band it says nothing (a crawl is not pulled to a cruise).
     pub(super) fn speed_bound_update(&mut self, omega: &[f64; 3], gain: Gain) {
         let (fwd, rev) = (self.p.max_forward_speed, self.p.max_reverse_speed);
-        if !self.vehicle || fwd <= 0.0 {
+        if !self.vehicle || fwd <= 0.0 || !self.on(Rule::ForwardSpeedBound) {
             return;
         }
         let (val, h) = self.body_velocity_row(0, omega);

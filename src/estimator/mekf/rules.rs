@@ -1,0 +1,275 @@
+//! The default filter's situation rules, named: what the filter does on top
+//! of its propagation and its plain measurements because of a situation it
+//! recognises. Each has a switch, for ablation only (`[mekf] ablate`,
+//! `gyrocomp evaluate --ablate`): with a rule switched off the filter
+//! behaves as if the rule had never been written. Every rule is on by
+//! default; the default filter is the filter with none switched off.
+
+/// One named rule.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Rule {
+    Cruise,
+    VelocityAge,
+    TurningAtSpeed,
+    FieldTurned,
+    GapVelocityUnknown,
+    WheelStanding,
+    LevelRate,
+    LevelRoll,
+    VerticalSpeedBound,
+    ForwardSpeedBound,
+    QuietVelocityNoise,
+    KnockNoise,
+    Relevel,
+    VelocityReacquire,
+    HeadingReacquire,
+    RestartLost,
+    RestartBiasRange,
+    PullAwayAxes,
+    SpeedHypotheses,
+    FreeUnitCopy,
+    LeaveVehicleModel,
+    RelevelFree,
+    ProvisionalBias,
+    GravityLag,
+    GapHeadingOpen,
+    MagRefRetake,
+    MagNewNormal,
+}
+
+impl Rule {
+    /// Every rule, in the order of the ablation table.
+    pub const ALL: [Rule; 27] = [
+        Rule::Cruise,
+        Rule::VelocityAge,
+        Rule::TurningAtSpeed,
+        Rule::FieldTurned,
+        Rule::GapVelocityUnknown,
+        Rule::WheelStanding,
+        Rule::LevelRate,
+        Rule::LevelRoll,
+        Rule::VerticalSpeedBound,
+        Rule::ForwardSpeedBound,
+        Rule::QuietVelocityNoise,
+        Rule::KnockNoise,
+        Rule::Relevel,
+        Rule::VelocityReacquire,
+        Rule::HeadingReacquire,
+        Rule::RestartLost,
+        Rule::RestartBiasRange,
+        Rule::PullAwayAxes,
+        Rule::SpeedHypotheses,
+        Rule::FreeUnitCopy,
+        Rule::LeaveVehicleModel,
+        Rule::RelevelFree,
+        Rule::ProvisionalBias,
+        Rule::GravityLag,
+        Rule::GapHeadingOpen,
+        Rule::MagRefRetake,
+        Rule::MagNewNormal,
+    ];
+
+    /// The rule's name in the config and the tables.
+    pub fn name(self) -> &'static str {
+        self.describe().0
+    }
+
+    /// (name, what it does, where).
+    pub fn describe(self) -> (&'static str, &'static str, &'static str) {
+        match self {
+            Rule::Cruise => (
+                "cruise",
+                "a quiet period whose zero velocity the velocity state refuses (NIS beyond the gate) is a smooth cruise, not a stop",
+                "mekf/tick.rs, velocity_belief.rs",
+            ),
+            Rule::VelocityAge => (
+                "velocity_age",
+                "the velocity ages with the heading turned since the last stop (an accelerometer bias no longer cancels), letting a stop in",
+                "mekf/velocity_belief.rs",
+            ),
+            Rule::TurningAtSpeed => (
+                "turning_at_speed",
+                "a still period whose specific force lies along the centripetal acceleration of the filter's motion is a turn",
+                "mekf/tick.rs",
+            ),
+            Rule::FieldTurned => (
+                "field_turned",
+                "a still period during which the magnetic field turned in the car's frame is a turn",
+                "mekf/tick.rs",
+            ),
+            Rule::GapVelocityUnknown => (
+                "gap_velocity_unknown",
+                "the first quiet period after a counter gap is judged with the velocity unknown",
+                "mekf/tick.rs",
+            ),
+            Rule::WheelStanding => (
+                "wheel_standing",
+                "with wheel speeds, the wheels decide that the car stands (0.5 s under 0.05 m/s), the IMU only that it is quiet",
+                "mekf/tick.rs",
+            ),
+            Rule::LevelRate => (
+                "level_rate",
+                "a car before its bias is read: its mean roll/pitch rate over 3 s is its bias's",
+                "mekf/measure.rs",
+            ),
+            Rule::LevelRoll => (
+                "level_roll",
+                "a car with no heading reference before its bias is read: its roll is level within 3 deg",
+                "mekf/measure.rs",
+            ),
+            Rule::VerticalSpeedBound => {
+                ("vertical_speed_bound", "a car's vertical speed is held within max_vertical_speed", "mekf/measure.rs")
+            }
+            Rule::ForwardSpeedBound => (
+                "forward_speed_bound",
+                "a car's forward speed is held within -max_reverse_speed..max_forward_speed",
+                "mekf/velocity_belief.rs",
+            ),
+            Rule::QuietVelocityNoise => (
+                "quiet_velocity_noise",
+                "a quiet car's velocity noise is accel_noise_quiet, rising with its acceleration and vibration (off: accel_noise always)",
+                "mekf/kalman.rs",
+            ),
+            Rule::KnockNoise => {
+                ("knock_noise", "a knock (vibration beyond 0.5 g within a tick) opens the velocity far beyond accel_noise", "mekf/kalman.rs")
+            }
+            Rule::Relevel => (
+                "relevel",
+                "a standstill whose evidence is refused for relevel_s re-levels the tilt, the bias and the velocity",
+                "mekf/tick.rs, measure.rs",
+            ),
+            Rule::VelocityReacquire => (
+                "velocity_reacquire",
+                "velocity constraints refused in motion for relevel_s widen the velocity",
+                "mekf/tick.rs",
+            ),
+            Rule::HeadingReacquire => (
+                "heading_reacquire",
+                "an undisturbed field refused for 5 s opens the heading to it",
+                "mekf/measure.rs",
+            ),
+            Rule::RestartLost => (
+                "restart_lost",
+                "velocity constraints refused 80 % of the time (over 5 s) restart the filter from its prior",
+                "mekf/tick.rs",
+            ),
+            Rule::RestartBiasRange => (
+                "restart_bias_range",
+                "a bias beyond 4 prior sigmas before a standstill has read it restarts the filter from its prior",
+                "mekf/tick.rs",
+            ),
+            Rule::PullAwayAxes => (
+                "pull_away_axes",
+                "pull-aways after still periods turn the vehicle constraint's axes about the body z axis",
+                "mekf/forward_axis.rs",
+            ),
+            Rule::SpeedHypotheses => (
+                "speed_hypotheses",
+                "a car IMU only runs a bank of power-on forward speeds until its first standstill",
+                "hypotheses.rs",
+            ),
+            Rule::FreeUnitCopy => (
+                "free_unit_copy",
+                "the power-on bank runs a free-unit copy, published if the unit leaves the vehicle model",
+                "hypotheses.rs, mekf/motion_model.rs",
+            ),
+            Rule::LeaveVehicleModel => (
+                "leave_vehicle_model",
+                "vehicle = auto leaves the vehicle model when the roll/pitch rates swing like a hand's or the unit tilts past 45 deg",
+                "mekf/motion_model.rs",
+            ),
+            Rule::RelevelFree => (
+                "relevel_free",
+                "a free unit whose low-passed gravity is refused for relevel_s turns its tilt to it",
+                "mekf/measure.rs",
+            ),
+            Rule::ProvisionalBias => (
+                "provisional_bias",
+                "a free unit powered on in motion learns its bias in motion once its tilt has settled on the low-passed gravity",
+                "mekf/tick.rs",
+            ),
+            Rule::GravityLag => (
+                "gravity_lag",
+                "the low-passed gravity's lag of a bias error (tau C_lag db) is in its row while the bias is unread",
+                "mekf/measure.rs",
+            ),
+            Rule::GapHeadingOpen => (
+                "gap_heading_open",
+                "after a counter gap, a car's next magnetic heading turns the whole state (attitude and velocity) to it",
+                "mekf/gap.rs",
+            ),
+            Rule::MagRefRetake => (
+                "mag_ref_retake",
+                "the field's reference taken before the tilt was anchored is taken again once it is",
+                "mekf/measure.rs, tick.rs",
+            ),
+            Rule::MagNewNormal => (
+                "mag_new_normal",
+                "a field disturbed for a minute and steady at a rest becomes the new reference",
+                "mekf/measure.rs",
+            ),
+        }
+    }
+
+    /// The rule of this name.
+    pub fn from_name(name: &str) -> Option<Rule> {
+        Rule::ALL.iter().copied().find(|r| r.name() == name)
+    }
+
+    fn bit(self) -> u32 {
+        1 << (self as u32)
+    }
+}
+
+/// The rules switched off (none by default).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RulesOff(u32);
+
+impl RulesOff {
+    /// The rules named, or the first unknown name with the known ones.
+    pub fn from_names<S: AsRef<str>>(names: &[S]) -> Result<RulesOff, String> {
+        let mut off = RulesOff::default();
+        for n in names {
+            let r = Rule::from_name(n.as_ref()).ok_or_else(|| {
+                let known: Vec<&str> = Rule::ALL.iter().map(|r| r.name()).collect();
+                format!("unknown rule {:?}; the rules are {}", n.as_ref(), known.join(", "))
+            })?;
+            off.0 |= r.bit();
+        }
+        Ok(off)
+    }
+
+    /// Only this rule switched off.
+    pub fn only(r: Rule) -> RulesOff {
+        RulesOff(r.bit())
+    }
+
+    /// Whether `r` is on.
+    #[inline]
+    pub fn on(self, r: Rule) -> bool {
+        self.0 & r.bit() == 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_rule_has_its_own_name_and_bit() {
+        let mut names: Vec<&str> = Rule::ALL.iter().map(|r| r.name()).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), Rule::ALL.len());
+        for r in Rule::ALL {
+            assert_eq!(Rule::from_name(r.name()), Some(r));
+            let off = RulesOff::only(r);
+            assert!(!off.on(r));
+            assert_eq!(Rule::ALL.iter().filter(|o| !off.on(**o)).count(), 1, "{}", r.name());
+            assert!(RulesOff::default().on(r));
+        }
+        assert!(RulesOff::from_names(&["cruise", "level_rate"]).is_ok_and(|o| !o.on(Rule::Cruise) && !o.on(Rule::LevelRate)));
+        let e = RulesOff::from_names(&["cruse"]).unwrap_err();
+        assert!(e.contains("\"cruse\"") && e.contains("cruise"), "{e}");
+    }
+}
