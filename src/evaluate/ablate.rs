@@ -155,7 +155,8 @@ pub fn parse_rules(list: Option<&str>) -> Result<Vec<Rule>, String> {
 /// The ablation tables: the families' worst roll / pitch (and the worst
 /// seconds of a standstill declared while moving), and the recordings' roll
 /// / pitch RMS; a verdict per rule: on how many columns switching it off
-/// made the worst tilt (families) or the tilt RMS (recordings) worse or
+/// made the worst tilt (families; or the seconds of a standstill declared
+/// while moving, by 5 % and 1 s) or the tilt RMS (recordings) worse or
 /// better by more than 5 %.
 pub fn run(base: &Config, a: &AblateRun) -> Result<String, String> {
     if a.rules.is_empty() {
@@ -200,7 +201,7 @@ pub fn run(base: &Config, a: &AblateRun) -> Result<String, String> {
     if a.realdata.is_some() {
         out += "recordings: roll / pitch RMS of ours (deg), as `evaluate --realdata` scores them\n";
     }
-    out += "verdict: columns where the rule's absence made the worst tilt (families) or the tilt RMS (recordings) worse / better by more than 5 %\n";
+    out += "verdict: columns where the rule's absence made the worst tilt (the larger of roll and pitch) or, on the families, the seconds of a standstill declared while moving worse / better by more than 5 % (and 1 s); the recordings by their tilt RMS\n";
     out += &format!("{:<24}", "variant");
     for (k, c) in cols.iter().enumerate() {
         out += &format!(" | {:>20}", if k < n_fam { format!("{c} (still s)") } else { c.clone() });
@@ -214,9 +215,13 @@ pub fn run(base: &Config, a: &AblateRun) -> Result<String, String> {
             let s = if k < n_fam { format!("{x:.2}/{y:.2} ({:.0})", still[k][v]) } else { format!("{x:.3}/{y:.3}") };
             out += &format!(" | {s:>20}");
             let t0 = col[0].2;
-            if v > 0 && t > 1.05 * t0 {
+            // a standstill declared while moving counts as much as the tilt
+            let (s, s0) = if k < n_fam { (still[k][v], still[k][0]) } else { (0.0, 0.0) };
+            let more_still = s > 1.05 * s0 && s > s0 + 1.0;
+            let less_still = s < s0 / 1.05 && s < s0 - 1.0;
+            if v > 0 && (t > 1.05 * t0 || (more_still && t >= t0 / 1.05)) {
                 worse += 1;
-            } else if v > 0 && t < t0 / 1.05 {
+            } else if v > 0 && (t < t0 / 1.05 || less_still) {
                 better += 1;
             }
         }
