@@ -108,6 +108,7 @@ impl Report {
                 "standstill {:.1} s, re-levels {}, updates refused by the gate {:.1} s (longest run {:.1} s), velocity re-acquired {} times, restarts from the prior {}\n",
                 c.rest_s, c.relevels, c.gated_s, c.refused_max_s, c.reacquired, c.restarts
             );
+            s += &format!("rules that acted (ticks, or times for an event): {}\n", c.rules);
             if let Some(q) = c.rest_never_found() {
                 s += &format!(
                     "standstill never found: the quietest deviations were {q}; if the unit stood still, its noise or vibration is above them (a noisier part than the ADIS16448, seen in blocks of about 204.8 Hz, needs its own [rest])\n"

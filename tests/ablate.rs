@@ -103,3 +103,25 @@ fn the_recordings_are_weighed_too() {
     assert_eq!(default.len(), 1, "{out}");
     assert!(default[0].0 > 0.0 && default[0].1 > 0.0 && off[0] != default[0], "{out}");
 }
+
+/// The replay summary says which rules acted and how often; a rule
+/// switched off by the config neither acts nor is counted, and the
+/// estimates change.
+#[test]
+fn the_replay_summary_names_the_rules_that_acted() {
+    let road = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/road-40s.log");
+    let d = tempfile::tempdir().unwrap();
+    let (a, b) = (d.path().join("a.log"), d.path().join("b.log"));
+    let rules_line = |err: &str| err.lines().find(|l| l.starts_with("rules that acted")).unwrap_or_else(|| panic!("{err}")).to_string();
+    let (ok, out, err) = run(&["replay", "--input", road, "--output", a.to_str().unwrap()]);
+    assert!(ok, "{out}{err}");
+    let line = rules_line(&(out.clone() + &err));
+    assert!(line.contains("level_rate "), "{line}");
+    let cfg = d.path().join("c.toml");
+    std::fs::write(&cfg, "[mekf]\nablate = [\"level_rate\"]\n").unwrap();
+    let (ok, out, err) = run(&["replay", "--config", cfg.to_str().unwrap(), "--input", road, "--output", b.to_str().unwrap()]);
+    assert!(ok, "{out}{err}");
+    let line = rules_line(&(out + &err));
+    assert!(!line.contains("level_rate"), "{line}");
+    assert_ne!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), "switching level_rate off changed nothing");
+}

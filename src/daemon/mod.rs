@@ -481,7 +481,10 @@ fn status_line(last: &Option<Estimate>, silent: bool, pipe: &Pipeline, shell: &S
     let r = pipe.report();
     let mut what = String::new();
     if let Some(k) = &r.mekf {
-        what = format!("; standstill {:.0} s, re-levels {}, restarts {}, refused {:.0} s", k.rest_s, k.relevels, k.restarts, k.gated_s);
+        what = format!(
+            "; standstill {:.0} s, re-levels {}, restarts {}, refused {:.0} s, rules acted: {}",
+            k.rest_s, k.relevels, k.restarts, k.gated_s, k.rules
+        );
         if let Some(q) = k.rest_never_found() {
             what += &format!(" (none found yet: the quietest deviations were {q})");
         }

@@ -235,6 +235,7 @@ impl Mekf {
         }
         self.axes = VehicleAxes::new(yaw, self.p.lever);
         self.counters.reaxed += 1;
+        self.counters.rules.note(Rule::PullAwayAxes);
         // the velocity since the still period was held along the wrong axes
         // for one pull-away: open it by the speed that pull-away reached
         let dv = x.hypot(y) * G * PULL_WINDOW_S;

@@ -69,6 +69,7 @@ impl Mekf {
             let mut h = [0.0; N];
             h[VE + 2] = 1.0;
             let _ = self.update(&h, vmax.copysign(self.v[2]) - self.v[2], VERTICAL_BOUND_SIGMA * VERTICAL_BOUND_SIGMA, gain, f64::INFINITY);
+            self.counters.rules.note(Rule::VerticalSpeedBound);
         }
         self.speed_bound_update(omega, gain);
         (fused, gated)
@@ -99,6 +100,7 @@ impl Mekf {
             return;
         }
         let LevelWindow { t: w, s_c: c, s_cg: g } = std::mem::take(&mut self.level);
+        self.counters.rules.note(Rule::LevelRate);
         if self.mag_on != Some(true) {
             self.level_roll_update(gain);
         }
@@ -131,6 +133,7 @@ impl Mekf {
     pub(super) fn level_roll_update(&mut self, gain: Gain) {
         if let Some((roll, h)) = self.car_roll_row() {
             let _ = self.update(&h, -roll, LEVEL_ROLL_SIGMA * LEVEL_ROLL_SIGMA, gain, f64::INFINITY);
+            self.counters.rules.note(Rule::LevelRoll);
         }
     }
 
@@ -314,6 +317,7 @@ impl Mekf {
         // before a standstill or a saved bias anchored that tilt (powered on
         // while driving) is taken again once one has
         if self.bias_known && self.mag_ref_weak && self.on(Rule::MagRefRetake) {
+            self.counters.rules.note(Rule::MagRefRetake);
             self.mag_ref = None;
         }
         if self.mag_ref.is_none() {
@@ -333,6 +337,7 @@ impl Mekf {
                     // a field that stays different for a minute and is steady
                     // at a rest is the new normal (moved car, new mounting)
                     if at_rest && self.mag_dist_s > 60.0 && self.on(Rule::MagNewNormal) {
+                        self.counters.rules.note(Rule::MagNewNormal);
                         self.mag_ref = Some((nrm, dip));
                         self.mag_dist_s = 0.0;
                     }
@@ -347,6 +352,7 @@ impl Mekf {
             // The car turned over a gap: take the field's heading whole, the
             // velocity turning with it, then fuse it as usual.
             self.turn_heading(-nu);
+            self.counters.rules.note(Rule::GapHeadingOpen);
             self.heading_open = false;
             return self.heading_update(m, at_rest, learn, gate);
         }
@@ -364,6 +370,7 @@ impl Mekf {
                 self.cov[TH + 2][TH + 2] = self.cov[TH + 2][TH + 2].max(nu * nu);
                 self.heading_refused = 0.0;
                 self.counters.reacquired += 1;
+                self.counters.rules.note(Rule::HeadingReacquire);
             }
         } else {
             self.heading_refused = 0.0;

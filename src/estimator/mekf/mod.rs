@@ -53,7 +53,7 @@ mod velocity_belief;
 use forward_axis::{PullAways, VehicleAxes};
 use gravity_lp::{GravityLp, LpGains};
 pub use params::{MagUse, MekfParams, Vehicle};
-pub use rules::{Rule, RulesOff};
+pub use rules::{Rule, RuleCounts, RulesOff};
 
 use super::quat::{self, cross, norm, rotate, rotate_t, Mat3, Quat};
 use super::rest::{GravityRef, RestDetector, RestState};
@@ -232,6 +232,8 @@ pub struct MekfCounters {
     /// sample): what the summary shows when no standstill was ever found.
     /// Filled by `Mekf::counters`.
     pub quietest: Option<Quietest>,
+    /// How often each named rule acted (`rules.rs`).
+    pub rules: RuleCounts,
 }
 
 impl MekfCounters {

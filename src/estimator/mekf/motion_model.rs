@@ -45,6 +45,7 @@ impl Mekf {
     /// the low-passed gravity. The velocity is a free unit's.
     fn leave_vehicle_model(&mut self) {
         self.vehicle = false;
+        self.counters.rules.note(Rule::LeaveVehicleModel);
         if !self.bias_known {
             let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
             self.decorrelate(&[TH, TH + 1]);

@@ -221,6 +221,55 @@ impl Rule {
     }
 }
 
+/// How often each rule acted: ticks for a rule that holds a state (a
+/// cruise, a turn, the wheels standing), times for one that acts once (a
+/// re-level, a bound applied, a restart).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RuleCounts([u64; 27]);
+
+impl RuleCounts {
+    /// `r` acted once more.
+    #[inline]
+    pub fn note(&mut self, r: Rule) {
+        self.0[r as usize] += 1;
+    }
+
+    /// How often `r` acted.
+    pub fn get(&self, r: Rule) -> u64 {
+        self.0[r as usize]
+    }
+
+    /// The rules that acted, with their counts, in table order.
+    pub fn acted(&self) -> Vec<(Rule, u64)> {
+        Rule::ALL.iter().map(|r| (*r, self.get(*r))).filter(|(_, n)| *n > 0).collect()
+    }
+}
+
+impl std::fmt::Display for RuleCounts {
+    /// "cruise 1200, level_rate 45" (the rules that acted), or "none".
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let a = self.acted();
+        if a.is_empty() {
+            return write!(f, "none");
+        }
+        let parts: Vec<String> = a.iter().map(|(r, n)| format!("{} {n}", r.name())).collect();
+        write!(f, "{}", parts.join(", "))
+    }
+}
+
+impl serde::Serialize for RuleCounts {
+    /// A map of the rules that acted to their counts.
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let a = self.acted();
+        let mut m = s.serialize_map(Some(a.len()))?;
+        for (r, n) in a {
+            m.serialize_entry(r.name(), &n)?;
+        }
+        m.end()
+    }
+}
+
 /// The rules switched off (none by default).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RulesOff(u32);
@@ -271,5 +320,16 @@ mod tests {
         assert!(RulesOff::from_names(&["cruise", "level_rate"]).is_ok_and(|o| !o.on(Rule::Cruise) && !o.on(Rule::LevelRate)));
         let e = RulesOff::from_names(&["cruse"]).unwrap_err();
         assert!(e.contains("\"cruse\"") && e.contains("cruise"), "{e}");
+    }
+
+    #[test]
+    fn the_counts_say_which_rules_acted() {
+        let mut c = RuleCounts::default();
+        assert_eq!(c.to_string(), "none");
+        c.note(Rule::LevelRate);
+        c.note(Rule::Cruise);
+        c.note(Rule::Cruise);
+        assert_eq!(c.to_string(), "cruise 2, level_rate 1");
+        assert_eq!(c.get(Rule::Relevel), 0);
     }
 }

@@ -40,7 +40,15 @@ impl Mekf {
         // `field_turned`)
         let f_mean = [a.accel[0] / n, a.accel[1] / n, a.accel[2] / n];
         let field_turned = self.field_turned(&a) && self.on(Rule::FieldTurned);
-        let still = imu_still && !a.suspect && (wheel.is_some() || !(field_turned || self.turning_at_speed(&omega, &f_mean)));
+        let turning = !field_turned && imu_still && wheel.is_none() && self.turning_at_speed(&omega, &f_mean);
+        if imu_still && wheel.is_none() {
+            if field_turned {
+                self.counters.rules.note(Rule::FieldTurned);
+            } else if turning {
+                self.counters.rules.note(Rule::TurningAtSpeed);
+            }
+        }
+        let still = imu_still && !a.suspect && (wheel.is_some() || !(field_turned || turning));
         // A stop is a physical event: a car the filter knows to be moving
         // cannot stand without a deceleration the accelerometer measured. A
         // still period whose zero velocity the velocity state refuses (its
@@ -63,6 +71,15 @@ impl Mekf {
         let after_gap = self.after_gap && self.on(Rule::GapVelocityUnknown);
         let cruising =
             self.on(Rule::Cruise) && self.vehicle && !wheel_standing && still && !after_gap && self.zero_velocity_nis() > self.p.gate;
+        if cruising {
+            self.counters.rules.note(Rule::Cruise);
+        }
+        if after_gap && still && self.vehicle {
+            self.counters.rules.note(Rule::GapVelocityUnknown);
+        }
+        if wheel.is_some() && still {
+            self.counters.rules.note(Rule::WheelStanding);
+        }
         let at_rest = still && !cruising;
         self.age_velocity(t, at_rest);
         // The paper's policy: what takes the accelerometer for gravity (the
@@ -91,10 +108,12 @@ impl Mekf {
             && self.gravity_held >= self.p.accel_tau
         {
             self.tilt_settled = true;
+            self.counters.rules.note(Rule::ProvisionalBias);
             // the field's dip, taken with the tilt before it settled, made
             // every later field look disturbed (broad-18 cut 5 s into its
             // motion: heading 75 deg off until its first rest, 33 s on)
             if self.mag_ref_weak && self.on(Rule::MagRefRetake) {
+                self.counters.rules.note(Rule::MagRefRetake);
                 self.mag_ref = None;
             }
             if self.learns_in_motion() {
@@ -130,6 +149,7 @@ impl Mekf {
             if at_rest && tilt_in_doubt && self.refused_still >= self.p.relevel_s && self.on(Rule::Relevel) {
                 self.inject();
                 self.relevel();
+                self.counters.rules.note(Rule::Relevel);
                 fl |= flags::RELEVEL;
                 o.fused = true;
                 o.learned = true;
@@ -152,6 +172,7 @@ impl Mekf {
                 if !self.vehicle && self.gravity_refused >= self.p.relevel_s && self.on(Rule::RelevelFree) {
                     self.inject();
                     self.relevel_free();
+                    self.counters.rules.note(Rule::RelevelFree);
                     fl |= flags::RELEVEL;
                 }
                 o.fused |= f;
@@ -201,6 +222,7 @@ impl Mekf {
             }
             self.nhc_refused = 0.0;
             self.counters.reacquired += 1;
+            self.counters.rules.note(Rule::VelocityReacquire);
         }
         self.inject();
         // a pull-away after a still period shows the car's x axis
@@ -215,6 +237,7 @@ impl Mekf {
             && !at_rest
             && (0..3).any(|i| (self.bias[i] - pb[i]).abs() > BIAS_LIMIT_SIGMAS * ps[i].max(self.p.init_bias_sigma));
         if lost || unbelievable {
+            self.counters.rules.note(if lost { Rule::RestartLost } else { Rule::RestartBiasRange });
             self.restart_from_prior();
             fl |= flags::RELEVEL;
             self.tick_flags = fl;

@@ -80,6 +80,7 @@ impl Mekf {
         };
         let var = self.p.speed_bound_sigma * self.p.speed_bound_sigma;
         let _ = self.update(&h, bound - val, var, gain, f64::INFINITY);
+        self.counters.rules.note(Rule::ForwardSpeedBound);
     }
 }
 
