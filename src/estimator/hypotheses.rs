@@ -17,8 +17,12 @@
 //! scores the measurements by its own prediction (the log-likelihood of the
 //! innovations, `Mekf::log_likelihood`). The best one is published; another
 //! replaces it when it leads by `SWITCH_NATS`. The bank ends, keeping the
-//! best, at the first standstill (the speed is then known to be zero),
-//! after `BANK_S` seconds, or when the unit turns out not to be a vehicle.
+//! best, at the first standstill that every plausible copy takes for one
+//! (the speed is then known to be zero; a copy whose own velocity refuses
+//! the stop takes it for a smooth cruise, and the quiet IMU cannot tell
+//! them apart), after `BANK_S` seconds, or when the unit turns out not to
+//! be a vehicle. A zero-velocity update is not scored: it is what a copy
+//! assumes, not a measurement every copy shares.
 //!
 //! With `vehicle = "auto"` the bank also runs one copy as a free unit from
 //! power-on. A hand whose first seconds look like a car body's is taken for
@@ -176,7 +180,15 @@ impl SpeedHypotheses {
             published.set_scoring(false);
             return BankStep { switched, ended: Some(BankEnd::NotVehicle) };
         }
-        let ended = if published.counters.rest_s > 0.0 {
+        // A standstill ends the bank only when every plausible copy takes
+        // it for one: a copy whose velocity refuses it (a cruise at its
+        // speed) is as likely until evidence separates them (a turn, the
+        // time limit). The zero-speed copy of a car powered on in a smooth
+        // cruise found its "first standstill" 1.8 s after power-on and ended
+        // the bank at 0 m/s (`smooth --power-on-moving` seeds 2, 5, 9).
+        let standing = |m: &Mekf| m.last_step().1 & super::flags::STANDSTILL != 0;
+        let all_stand = self.alternatives.iter().all(|m| !plausible(m) || standing(m));
+        let ended = if published.counters.rest_s > 0.0 && standing(published) && all_stand {
             Some(BankEnd::Standstill)
         } else if s.t >= BANK_S {
             Some(BankEnd::Timeout)

@@ -353,7 +353,11 @@ impl Mekf {
             for i in 0..3 {
                 let mut h = [0.0; N];
                 h[VE + i] = 1.0;
-                let u = self.update(&h, -self.v[i], self.p.zupt_var, Gain { velocity: true, ..all }, gate);
+                // not scored for the power-on bank: a standstill is what this
+                // copy assumes, not a measurement every copy shares (scored,
+                // the copy that took a cruise for a stop gained nats from
+                // its own assumption)
+                let u = self.update(&h, -self.v[i], self.p.zupt_var, all, gate);
                 note(u, o);
             }
         }
