@@ -5,9 +5,20 @@
 
 use super::*;
 
+/// What a tick's unit is doing (`Mekf::situation`).
+struct Situation {
+    /// The wheels' speed, fused (None without `[speed]` or when stale).
+    wheel: Option<f64>,
+    still: bool,
+    at_rest: bool,
+}
+
 impl Mekf {
     /// Propagate the covariance over the accumulated interval and run the
-    /// measurement updates the policy allows.
+    /// measurement updates the policy allows: the situation (still, at
+    /// rest or cruising, moving), the updates of a still or a moving unit,
+    /// the wheel speed and the heading, the named recovery rules, and the
+    /// tick's outcome.
     pub(super) fn tick(&mut self, temp: f64) {
         let a = std::mem::take(&mut self.acc);
         self.acc = Accum { quasi: true, rest: true, quiet: true, ..Accum::default() };
@@ -27,6 +38,33 @@ impl Mekf {
         let mut o = Outcome::default();
         self.dx = [0.0; N];
         let omega = [a.omega[0] / n, a.omega[1] / n, a.omega[2] / n];
+        let sit = self.situation(&a, &omega);
+        self.settle_free_tilt();
+        let learns_in_motion = self.learns_in_motion() && (self.bias_known || self.tilt_settled);
+        let learn_gravity = (a.quasi || learns_in_motion) && !a.suspect;
+        let learn = !a.suspect;
+        if sit.still {
+            self.still_tick(&a, sit.at_rest, &mut o, &mut fl);
+        } else {
+            self.refused_still = 0.0;
+            self.moving_tick(&a, &omega, learn, learn_gravity, &mut o, &mut fl);
+        }
+        self.speed_and_heading(&a, &omega, &sit, learn, &mut o, &mut fl);
+        self.reacquire_velocity();
+        self.inject();
+        // a pull-away after a still period shows the car's x axis
+        self.watch_pull_aways(&a, sit.still);
+        if self.restart_if_diverged(sit.at_rest) {
+            self.tick_flags = fl | flags::RELEVEL;
+            return;
+        }
+        self.finish_tick(temp, t, sit.at_rest, &o, fl);
+    }
+
+    /// What the tick's unit is doing: still (at rest, or a smooth cruise the
+    /// velocity refuses to stop), or moving; the wheels' speed when fused.
+    fn situation(&mut self, a: &Accum, omega: &[f64; 3]) -> Situation {
+        let (t, n) = (a.t, a.n as f64);
         // With wheel speeds the wheels decide that the car stands (read
         // standing for WHEEL_STANDING_S), the IMU only that it is quiet, with
         // no wait for the detector's time: a steady 0.05 g deceleration looks
@@ -39,8 +77,8 @@ impl Mekf {
         // IMU only, a steady gentle turn looks still too (`turning_at_speed`,
         // `field_turned`)
         let f_mean = [a.accel[0] / n, a.accel[1] / n, a.accel[2] / n];
-        let field_turned = self.field_turned(&a) && self.on(Rule::FieldTurned);
-        let turning = !field_turned && imu_still && wheel.is_none() && self.turning_at_speed(&omega, &f_mean);
+        let field_turned = self.field_turned(a) && self.on(Rule::FieldTurned);
+        let turning = !field_turned && imu_still && wheel.is_none() && self.turning_at_speed(omega, &f_mean);
         if imu_still && wheel.is_none() {
             if field_turned {
                 self.counters.rules.note(Rule::FieldTurned);
@@ -82,25 +120,29 @@ impl Mekf {
         }
         let at_rest = still && !cruising;
         self.age_velocity(t, at_rest);
-        // The paper's policy: what takes the accelerometer for gravity (the
-        // low-passed tilt and the bounded velocity of a unit that is not a
-        // vehicle) teaches the bias only when the data say quasi-static.
-        // What holds under any acceleration (standstill, the vehicle
-        // constraint, the wheel speed, the magnetic heading) always does.
-        // A unit that is not a vehicle learns it in motion too, with its
-        // motion walk (`q_bias_motion`): its gyro's error in motion is not
-        // its bias at rest; but only once a standstill (or a saved state)
-        // has read the bias. Powered on in motion, the low-passed gravity
-        // lags a tilt still being found: learning a bias of the part's
-        // range (3 deg/s) from it ran away on every BROAD recording started
-        // 15 s into its motion (10-44 deg of roll). So it corrects the tilt
-        // only until the tilt has settled on that gravity (taken without a
-        // break for `accel_tau_s`); from then on a steady residual
-        // is the bias's, learned provisionally from a sigma brought down to
-        // `PROVISIONAL_BIAS_SIGMA` (the cut broad-27's 0.46 deg/s x bias had
-        // held its roll 1.3 deg off for the 100 s to its first rest), the
-        // gravity's lag in the model (`gravity_lp_update`) and kept through
-        // re-levellings (`relevel_free`).
+        Situation { wheel, still, at_rest }
+    }
+
+    /// The paper's policy: what takes the accelerometer for gravity (the
+    /// low-passed tilt and the bounded velocity of a unit that is not a
+    /// vehicle) teaches the bias only when the data say quasi-static.
+    /// What holds under any acceleration (standstill, the vehicle
+    /// constraint, the wheel speed, the magnetic heading) always does.
+    /// A unit that is not a vehicle learns it in motion too, with its
+    /// motion walk (`q_bias_motion`): its gyro's error in motion is not
+    /// its bias at rest; but only once a standstill (or a saved state)
+    /// has read the bias. Powered on in motion, the low-passed gravity
+    /// lags a tilt still being found: learning a bias of the part's
+    /// range (3 deg/s) from it ran away on every BROAD recording started
+    /// 15 s into its motion (10-44 deg of roll). So it corrects the tilt
+    /// only until the tilt has settled on that gravity (taken without a
+    /// break for `accel_tau_s`); from then on a steady residual
+    /// is the bias's, learned provisionally from a sigma brought down to
+    /// `PROVISIONAL_BIAS_SIGMA` (the cut broad-27's 0.46 deg/s x bias had
+    /// held its roll 1.3 deg off for the 100 s to its first rest), the
+    /// gravity's lag in the model (`gravity_lp_update`) and kept through
+    /// re-levellings (`relevel_free`).
+    fn settle_free_tilt(&mut self) {
         if self.on(Rule::ProvisionalBias)
             && !self.bias_known
             && !self.vehicle
@@ -120,80 +162,91 @@ impl Mekf {
                 self.shrink(&[BI, BI + 1, BI + 2], PROVISIONAL_BIAS_SIGMA);
             }
         }
-        let learns_in_motion = self.learns_in_motion() && (self.bias_known || self.tilt_settled);
-        let learn_gravity = (a.quasi || learns_in_motion) && !a.suspect;
-        let learn = !a.suspect;
-        if still {
-            if at_rest {
-                fl |= flags::STANDSTILL;
-                self.counters.rest_s += t;
-            }
-            self.still_updates(&a, at_rest, &mut o);
-            if o.refused {
-                self.refused_still += t;
-            } else {
-                self.refused_still = 0.0;
-            }
-            // Re-levelled onto only where the filter's own tilt may be the
-            // wrong one: no standstill has read the bias yet (powered on
-            // moving, a turn-on bias of several deg/s), a counter gap hid
-            // what the unit did, or a free unit (a hand's rests are rests).
-            // A car whose bias a standstill has read has had its tilt held
-            // by the gyro since: a quiet period whose specific force that
-            // tilt refuses is a smooth acceleration taken for a stop (a
-            // crawl easing off, a gentle pull-away), and forced in, it put
-            // that acceleration into the tilt and the bias (`crawl` worst
-            // 2.30 / 3.22 deg, `smooth --hard` pitch 3.52; held, 1.16 / 1.83
-            // and 1.85, every other family the same).
-            let tilt_in_doubt = !self.bias_known || !self.vehicle || self.after_gap;
-            if at_rest && tilt_in_doubt && self.refused_still >= self.p.relevel_s && self.on(Rule::Relevel) {
-                self.inject();
-                self.relevel();
-                self.counters.rules.note(Rule::Relevel);
-                fl |= flags::RELEVEL;
-                o.fused = true;
-                o.learned = true;
-            }
-            self.nhc_refused = 0.0;
+    }
+
+    /// The updates of a still tick (`still_updates`) and the re-level a
+    /// standstill's refused evidence may call for.
+    fn still_tick(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome, fl: &mut u16) {
+        let t = a.t;
+        if at_rest {
+            *fl |= flags::STANDSTILL;
+            self.counters.rest_s += t;
+        }
+        self.still_updates(a, at_rest, o);
+        if o.refused {
+            self.refused_still += t;
         } else {
             self.refused_still = 0.0;
-            if !a.suspect {
-                let learn_v = if self.vehicle { learn } else { learn_gravity };
-                let (f, g) = self.velocity_updates(&omega, learn_v, self.p.gate);
-                // a car powered on while driving: its body's rate about the
-                // horizontal, averaged, is its bias's (`level_rate_update`)
-                if self.learns_level_rate() {
-                    self.inject();
-                    let gain = Gain { tilt: true, heading: true, bias: true, velocity: false };
-                    self.level_rate_update(t, &a.s_c, &a.s_cg, gain);
-                } else {
-                    self.level = LevelWindow::default();
-                }
-                if !self.vehicle && self.gravity_refused >= self.p.relevel_s && self.on(Rule::RelevelFree) {
-                    self.inject();
-                    self.relevel_free();
-                    self.counters.rules.note(Rule::RelevelFree);
-                    fl |= flags::RELEVEL;
-                }
-                o.fused |= f;
-                o.learned |= f && learn_v;
-                let k = (t / LOST_TAU_S).min(1.0);
-                self.refused_share += ((if g && !f { 1.0 } else { 0.0 }) - self.refused_share) * k;
-                if g {
-                    fl |= flags::GATED;
-                    self.counters.gated_s += t;
-                    self.nhc_refused += t;
-                    self.counters.refused_max_s = self.counters.refused_max_s.max(self.nhc_refused);
-                } else {
-                    self.nhc_refused = 0.0;
-                }
+        }
+        // Re-levelled onto only where the filter's own tilt may be the
+        // wrong one: no standstill has read the bias yet (powered on
+        // moving, a turn-on bias of several deg/s), a counter gap hid
+        // what the unit did, or a free unit (a hand's rests are rests).
+        // A car whose bias a standstill has read has had its tilt held
+        // by the gyro since: a quiet period whose specific force that
+        // tilt refuses is a smooth acceleration taken for a stop (a
+        // crawl easing off, a gentle pull-away), and forced in, it put
+        // that acceleration into the tilt and the bias (`crawl` worst
+        // 2.30 / 3.22 deg, `smooth --hard` pitch 3.52; held, 1.16 / 1.83
+        // and 1.85, every other family the same).
+        let tilt_in_doubt = !self.bias_known || !self.vehicle || self.after_gap;
+        if at_rest && tilt_in_doubt && self.refused_still >= self.p.relevel_s && self.on(Rule::Relevel) {
+            self.inject();
+            self.relevel();
+            self.counters.rules.note(Rule::Relevel);
+            *fl |= flags::RELEVEL;
+            o.fused = true;
+            o.learned = true;
+        }
+        self.nhc_refused = 0.0;
+    }
+
+    /// The updates of a moving tick: the vehicle constraint or a free
+    /// unit's gravity and bounded velocity, the level rate of a car whose
+    /// bias is unread, a free unit's re-level, the refusals' bookkeeping.
+    fn moving_tick(&mut self, a: &Accum, omega: &[f64; 3], learn: bool, learn_gravity: bool, o: &mut Outcome, fl: &mut u16) {
+        let t = a.t;
+        if !a.suspect {
+            let learn_v = if self.vehicle { learn } else { learn_gravity };
+            let (f, g) = self.velocity_updates(omega, learn_v, self.p.gate);
+            // a car powered on while driving: its body's rate about the
+            // horizontal, averaged, is its bias's (`level_rate_update`)
+            if self.learns_level_rate() {
+                self.inject();
+                let gain = Gain { tilt: true, heading: true, bias: true, velocity: false };
+                self.level_rate_update(t, &a.s_c, &a.s_cg, gain);
+            } else {
+                self.level = LevelWindow::default();
+            }
+            if !self.vehicle && self.gravity_refused >= self.p.relevel_s && self.on(Rule::RelevelFree) {
+                self.inject();
+                self.relevel_free();
+                self.counters.rules.note(Rule::RelevelFree);
+                *fl |= flags::RELEVEL;
+            }
+            o.fused |= f;
+            o.learned |= f && learn_v;
+            let k = (t / LOST_TAU_S).min(1.0);
+            self.refused_share += ((if g && !f { 1.0 } else { 0.0 }) - self.refused_share) * k;
+            if g {
+                *fl |= flags::GATED;
+                self.counters.gated_s += t;
+                self.nhc_refused += t;
+                self.counters.refused_max_s = self.counters.refused_max_s.max(self.nhc_refused);
+            } else {
+                self.nhc_refused = 0.0;
             }
         }
-        if let Some(vw) = wheel {
-            fl |= flags::SPEED_AIDED;
+    }
+
+    /// The wheel speed (each frame once) and the magnetic heading.
+    fn speed_and_heading(&mut self, a: &Accum, omega: &[f64; 3], sit: &Situation, learn: bool, o: &mut Outcome, fl: &mut u16) {
+        let (t, n, at_rest) = (a.t, a.n as f64, sit.at_rest);
+        if let Some(vw) = sit.wheel {
+            *fl |= flags::SPEED_AIDED;
             self.counters.speed_used_s += t;
             // each frame once; at a standstill the zero-velocity update says it
-            if self.speed_new && !at_rest && !a.suspect && self.speed_update(vw, &omega, learn, self.p.gate) == Upd::Fused {
+            if self.speed_new && !at_rest && !a.suspect && self.speed_update(vw, omega, learn, self.p.gate) == Upd::Fused {
                 o.fused = true;
             }
         }
@@ -208,11 +261,16 @@ impl Mekf {
                 Some(true) => o.fused = true,
                 Some(false) => {}
                 None => {
-                    fl |= flags::MAG_DISTURBED;
+                    *fl |= flags::MAG_DISTURBED;
                     self.counters.mag_disturbed_s += t;
                 }
             }
         }
+    }
+
+    /// `velocity_reacquire`: the velocity constraints refused in motion for
+    /// `relevel_s`.
+    fn reacquire_velocity(&mut self) {
         if self.nhc_refused >= self.p.relevel_s && self.on(Rule::VelocityReacquire) {
             // The velocity constraints have been refused for long: the
             // velocity, not the vehicle, is wrong. Widen it so they take hold
@@ -224,9 +282,11 @@ impl Mekf {
             self.counters.reacquired += 1;
             self.counters.rules.note(Rule::VelocityReacquire);
         }
-        self.inject();
-        // a pull-away after a still period shows the car's x axis
-        self.watch_pull_aways(&a, still);
+    }
+
+    /// `restart_lost`, `restart_bias_range`: a diverged filter starts again
+    /// from its prior (true when it did).
+    fn restart_if_diverged(&mut self, at_rest: bool) -> bool {
         let (pb, ps) = self.prior;
         // Before a standstill (or a saved state) has shown the bias, a bias
         // beyond the part's range is the filter's divergence, not the part;
@@ -239,10 +299,14 @@ impl Mekf {
         if lost || unbelievable {
             self.counters.rules.note(if lost { Rule::RestartLost } else { Rule::RestartBiasRange });
             self.restart_from_prior();
-            fl |= flags::RELEVEL;
-            self.tick_flags = fl;
-            return;
+            return true;
         }
+        false
+    }
+
+    /// The tick's outcome: the bias read, the learning point, the mode and
+    /// the flags the following samples carry.
+    fn finish_tick(&mut self, temp: f64, t: f64, at_rest: bool, o: &Outcome, mut fl: u16) {
         // known once a standstill has *read* it (a refused zero-rate update
         // says the filter's bias is wrong, not known)
         if at_rest && o.bias_read {
