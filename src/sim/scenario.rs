@@ -239,7 +239,54 @@ impl Ranges {
                 "ranges: ride_scale = [{lo:?}, {hi:?}]: want 0 <= low <= high <= {MAX_RIDE_SCALE} (times the comma2k19 car's ride vibration)"
             ));
         }
+        r.check()?;
         Ok(r)
+    }
+
+    /// Every half-width a finite number >= 0, every range finite with
+    /// low <= high, the lever arm within 10 m: a negative half-width (an
+    /// empty range read as its mirror) or a range the other way round is
+    /// refused naming the key (the drawn model's own ranges then bound the
+    /// sizes, `SensorModel::validate`).
+    fn check(&self) -> Result<(), String> {
+        let half = [
+            ("turn_on_bias", self.turn_on_bias),
+            ("thermal_quadratic", self.thermal_quadratic),
+            ("thermal_rate", self.thermal_rate),
+            ("warmup_amplitude", self.warmup_amplitude),
+            ("g_sensitivity", self.g_sensitivity),
+            ("scale_factor", self.scale_factor),
+            ("misalignment", self.misalignment),
+            ("accel_bias", self.accel_bias),
+            ("magn_bias", self.magn_bias),
+            ("wheel_scale_error", self.wheel_scale_error),
+            ("wheel_noise_kmh", self.wheel_noise_kmh),
+        ];
+        for (k, v) in half {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("ranges: {k} = {v:?}: want a finite half-width >= 0 (uniform in +-{k})"));
+            }
+        }
+        let pairs = [
+            ("thermal_linear_factor", self.thermal_linear_factor),
+            ("warmup_tau_s", self.warmup_tau_s),
+            ("time_delay_s", self.time_delay_s),
+            ("vibration_g", self.vibration_g),
+            ("ambient", self.ambient),
+            ("self_heating", self.self_heating),
+            ("heating_tau_s", self.heating_tau_s),
+            ("road_vibration_g", self.road_vibration_g),
+            ("wheel_latency_s", self.wheel_latency_s),
+        ];
+        for (k, [lo, hi]) in pairs {
+            if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+                return Err(format!("ranges: {k} = [{lo:?}, {hi:?}]: want finite low <= high"));
+            }
+        }
+        if self.lever_arm.iter().any(|l| !(l.is_finite() && l.abs() <= 10.0)) {
+            return Err(format!("ranges: lever_arm = {:?}: want each within -10..10 m (a car's rear axle to its sensor)", self.lever_arm));
+        }
+        Ok(())
     }
 }
 
@@ -608,6 +655,23 @@ pub const ROAD_SCENARIOS: [&str; 3] = ["urban", "smooth", "crawl"];
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_negative_half_width_a_reversed_range_or_a_far_lever_arm_is_refused() {
+        for (bad, key) in [
+            ("turn_on_bias = -1", "turn_on_bias"),
+            ("scale_factor = nan", "scale_factor"),
+            ("ambient = [30.0, 5.0]", "ambient"),
+            ("lever_arm = [1e9, 0.0, 0.0]", "lever_arm"),
+        ] {
+            let e = Ranges::with_overrides("urban", bad).unwrap_err();
+            assert!(e.contains(key), "{bad}: {e}");
+        }
+        assert!(Ranges::with_overrides("urban", "turn_on_bias = 0.5\nambient = [5.0, 5.0]").is_ok());
+        for sc in SCENARIOS {
+            assert!(Ranges::for_scenario(sc).check().is_ok(), "{sc}");
+        }
+    }
 
     #[test]
     fn a_ride_scale_outside_a_cars_range_is_refused() {
