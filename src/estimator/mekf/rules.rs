@@ -165,7 +165,7 @@ impl Rule {
             ),
             Rule::SpeedHypotheses => (
                 "speed_hypotheses",
-                "a car IMU only runs a bank of power-on forward speeds until its first standstill",
+                "a car IMU only runs a bank of power-on forward speeds until a standstill every copy takes for one (at most 60 s)",
                 "hypotheses.rs",
             ),
             Rule::FreeUnitCopy => (
