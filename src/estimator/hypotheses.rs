@@ -188,7 +188,7 @@ impl SpeedHypotheses {
         // the bank at 0 m/s (`smooth --power-on-moving` seeds 2, 5, 9).
         let standing = |m: &Mekf| m.last_step().1 & super::flags::STANDSTILL != 0;
         let all_stand = self.alternatives.iter().all(|m| !plausible(m) || standing(m));
-        let ended = if published.counters.rest_s > 0.0 && standing(published) && all_stand {
+        let ended = if standing(published) && all_stand {
             Some(BankEnd::Standstill)
         } else if s.t >= BANK_S {
             Some(BankEnd::Timeout)

@@ -138,17 +138,9 @@ pub struct AblateRun<'a> {
 pub fn parse_rules(list: Option<&str>) -> Result<Vec<Rule>, String> {
     match list {
         None => Ok(Rule::ALL.to_vec()),
-        Some(s) => s
-            .split(',')
-            .map(|n| n.trim())
-            .filter(|n| !n.is_empty())
-            .map(|n| {
-                Rule::from_name(n).ok_or_else(|| {
-                    let known: Vec<&str> = Rule::ALL.iter().map(|r| r.name()).collect();
-                    format!("--rules: unknown rule {n:?}; the rules are {}", known.join(", "))
-                })
-            })
-            .collect(),
+        Some(s) => {
+            s.split(',').map(|n| n.trim()).filter(|n| !n.is_empty()).map(|n| Rule::parse(n).map_err(|e| format!("--rules: {e}"))).collect()
+        }
     }
 }
 

@@ -216,6 +216,15 @@ impl Rule {
         Rule::ALL.iter().copied().find(|r| r.name() == name)
     }
 
+    /// The rule of this name, or an error naming it and listing the rules
+    /// (`[mekf] ablate`, `evaluate --rules`).
+    pub fn parse(name: &str) -> Result<Rule, String> {
+        Rule::from_name(name).ok_or_else(|| {
+            let known: Vec<&str> = Rule::ALL.iter().map(|r| r.name()).collect();
+            format!("unknown rule {name:?}; the rules are {}", known.join(", "))
+        })
+    }
+
     fn bit(self) -> u32 {
         1 << (self as u32)
     }
@@ -225,7 +234,7 @@ impl Rule {
 /// cruise, a turn, the wheels standing), times for one that acts once (a
 /// re-level, a bound applied, a restart).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct RuleCounts([u64; 27]);
+pub struct RuleCounts([u64; Rule::ALL.len()]);
 
 impl RuleCounts {
     /// `r` acted once more.
@@ -279,11 +288,7 @@ impl RulesOff {
     pub fn from_names<S: AsRef<str>>(names: &[S]) -> Result<RulesOff, String> {
         let mut off = RulesOff::default();
         for n in names {
-            let r = Rule::from_name(n.as_ref()).ok_or_else(|| {
-                let known: Vec<&str> = Rule::ALL.iter().map(|r| r.name()).collect();
-                format!("unknown rule {:?}; the rules are {}", n.as_ref(), known.join(", "))
-            })?;
-            off.0 |= r.bit();
+            off.0 |= Rule::parse(n.as_ref())?.bit();
         }
         Ok(off)
     }
