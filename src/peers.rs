@@ -135,6 +135,17 @@ pub(crate) mod tests {
         (d + 180.0).rem_euclid(360.0) - 180.0
     }
 
+    /// The worst roll/pitch and yaw errors (deg) of `est` against `truth`
+    /// from sample `from` on, the estimate's yaw taken less `yaw_off`.
+    pub(crate) fn worst_errors(est: &[[f64; 3]], truth: &[[f64; 3]], from: usize, yaw_off: f64) -> (f64, f64) {
+        let (mut worst_rp, mut worst_y) = (0.0f64, 0.0f64);
+        for (e, t) in est.iter().zip(truth).skip(from) {
+            worst_rp = worst_rp.max(wrap(e[0] - t[0]).abs()).max((e[1] - t[1]).abs());
+            worst_y = worst_y.max(wrap(e[2] - yaw_off - t[2]).abs());
+        }
+        (worst_rp, worst_y)
+    }
+
     #[test]
     fn frame_conversions_are_rotations_and_round_trip() {
         // A body attitude expressed through VQF's frames and back is the same.
@@ -159,12 +170,7 @@ pub(crate) mod tests {
             let k0 = (5.0 * rate) as usize;
             let off = if magn { 0.0 } else { wrap(est[k0][2] - truth[k0][2]) };
             let decl = 0.03f64.atan2(0.2).to_degrees();
-            let (mut worst_rp, mut worst_y) = (0.0f64, 0.0f64);
-            for k in (30.0 * rate) as usize..s.len() {
-                worst_rp = worst_rp.max(wrap(est[k][0] - truth[k][0]).abs()).max((est[k][1] - truth[k][1]).abs());
-                let yerr = wrap(est[k][2] - off - truth[k][2] + if magn { decl } else { 0.0 });
-                worst_y = worst_y.max(yerr.abs());
-            }
+            let (worst_rp, worst_y) = worst_errors(&est, &truth, (30.0 * rate) as usize, off - if magn { decl } else { 0.0 });
             assert!(worst_rp < 1.0, "magn {magn}: worst roll/pitch error {worst_rp}");
             assert!(worst_y < 2.0, "magn {magn}: worst yaw error {worst_y}");
         }

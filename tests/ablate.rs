@@ -3,9 +3,8 @@
 //! that is no rule; docs/estimator.md lists every rule.
 
 mod common;
-use common::bin;
+use common::{bin, realdata_dir};
 use gyrocomp::estimator::mekf::Rule;
-use std::path::PathBuf;
 use std::process::Command;
 
 fn run(args: &[&str]) -> (bool, String, String) {
@@ -86,14 +85,10 @@ fn the_estimator_page_lists_every_rule() {
 /// The recordings' table under ablation, where `../shared/realdata` is.
 #[test]
 fn the_recordings_are_weighed_too() {
-    let dir = match std::env::var_os("GYROCOMP_REALDATA") {
-        Some(d) => PathBuf::from(d),
-        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/realdata"),
-    };
-    if !dir.join("comma2k19-rav4-60s").is_dir() {
+    let Some(dir) = realdata_dir().filter(|d| d.join("comma2k19-rav4-60s").is_dir()) else {
         println!("skipped: ../shared/realdata/comma2k19-rav4-60s not found (set GYROCOMP_REALDATA to the folder of recordings)");
         return;
-    }
+    };
     let d = tempfile::tempdir().unwrap();
     std::os::unix::fs::symlink(dir.join("comma2k19-rav4-60s"), d.path().join("comma2k19-rav4-60s")).unwrap();
     let (ok, out, err) = run(&["evaluate", "--ablate", "--realdata", d.path().to_str().unwrap(), "--rules", "level_rate"]);

@@ -7,17 +7,9 @@
 //! `cargo test --release --test realdata -- --nocapture` shows the table.
 
 mod common;
-use common::{bin, read_gz, write_gz};
+use common::{bin, read_gz, realdata_dir, write_gz};
 use std::path::PathBuf;
 use std::process::Command;
-
-fn realdata_dir() -> Option<PathBuf> {
-    let d = match std::env::var_os("GYROCOMP_REALDATA") {
-        Some(d) => PathBuf::from(d),
-        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/realdata"),
-    };
-    d.is_dir().then_some(d)
-}
 
 /// The BROAD recordings among `names` that are under the folder of
 /// recordings, each one that is not said; said too when none is (or the

@@ -81,7 +81,7 @@ pub fn run_fusion(samples: &[Sample], period: f64, magn: bool) -> Vec<[f64; 3]> 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::peers::tests::{tumbling, wrap};
+    use crate::peers::tests::{tumbling, worst_errors, wrap};
     use nalgebra::Vector3;
 
     /// `n` samples of a unit at rest at roll, pitch (deg), reading `gyro` (deg/s).
@@ -162,11 +162,7 @@ mod tests {
             let k0 = (5.0 * rate) as usize;
             let decl = 0.03f64.atan2(0.2).to_degrees();
             let off = if magn { -decl } else { wrap(est[k0][2] - truth[k0][2]) };
-            let (mut worst_rp, mut worst_y) = (0.0f64, 0.0f64);
-            for k in (30.0 * rate) as usize..s.len() {
-                worst_rp = worst_rp.max(wrap(est[k][0] - truth[k][0]).abs()).max((est[k][1] - truth[k][1]).abs());
-                worst_y = worst_y.max(wrap(est[k][2] - off - truth[k][2]).abs());
-            }
+            let (worst_rp, worst_y) = worst_errors(&est, &truth, (30.0 * rate) as usize, off);
             assert!(worst_rp < 3.0, "magn {magn}: worst roll/pitch error {worst_rp}");
             assert!(worst_y < 5.0, "magn {magn}: worst yaw error {worst_y}");
         }

@@ -127,3 +127,14 @@ pub fn band_rms(x: &[f64], fs: f64, lo: f64, hi: f64, keep: impl Fn(usize) -> bo
     let (s, n) = y.iter().enumerate().skip(skip).filter(|(i, _)| keep(*i)).fold((0.0, 0usize), |(s, n), (_, v)| (s + v * v, n + 1));
     (s / n.max(1) as f64).sqrt()
 }
+
+/// The folder of real recordings: `$GYROCOMP_REALDATA`, else
+/// `../shared/realdata` beside the repository; None where it is not there
+/// (the tests that read it say so and skip).
+pub fn realdata_dir() -> Option<std::path::PathBuf> {
+    let d = match std::env::var_os("GYROCOMP_REALDATA") {
+        Some(d) => std::path::PathBuf::from(d),
+        None => std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/realdata"),
+    };
+    d.is_dir().then_some(d)
+}
