@@ -1,6 +1,10 @@
 //! The configuration's types: one serde struct per TOML section, each with
 //! its defaults (`Default`), unknown keys refused (`deny_unknown_fields`).
-//! Every key is optional; a missing one takes the default written here.
+//! Every key is optional; a missing one takes the default written here,
+//! once, in each struct's `Default` (the doc comments do not repeat the
+//! values). `check-config` prints them from there; the shipped
+//! `config/gyrocomp.toml` and the `[mekf]` table of `docs/estimator.md`
+//! are checked against them by `tests/defaults.rs`.
 
 use crate::adis::InputIds;
 use serde::de::Error as _;
@@ -290,22 +294,22 @@ impl Default for SwitchingConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct ThermalConfig {
     /// false for parts without a temperature channel: the curve and its
-    /// learning are not used (the temperature is still reported). Default true.
+    /// learning are not used (the temperature is still reported).
     pub enabled: bool,
-    /// Reference temperature of the curve, deg C. Default 25.
+    /// Reference temperature of the curve, deg C.
     pub t0: f64,
-    /// Slope per axis, deg/s per deg C. Default 0.
+    /// Slope per axis, deg/s per deg C.
     #[serde(deserialize_with = "exact_p1")]
     pub p1: [f64; 3],
-    /// Bias at t0 per axis, deg/s. Default 0.
+    /// Bias at t0 per axis, deg/s.
     #[serde(deserialize_with = "exact_p2")]
     pub p2: [f64; 3],
     /// Polynomial order, 1 (default, linear as in the paper), 2 or 3.
     pub order: u8,
-    /// Quadratic coefficient per axis, deg/s per (deg C)^2; must be 0 unless order >= 2. Default 0.
+    /// Quadratic coefficient per axis, deg/s per (deg C)^2; must be 0 unless order >= 2.
     #[serde(deserialize_with = "exact_p3")]
     pub p3: [f64; 3],
-    /// Cubic coefficient per axis, deg/s per (deg C)^3; must be 0 unless order = 3. Default 0.
+    /// Cubic coefficient per axis, deg/s per (deg C)^3; must be 0 unless order = 3.
     #[serde(deserialize_with = "exact_p4")]
     pub p4: [f64; 3],
     /// Lower edge of the calibrated temperature range, deg C. Default: none (no clamp below).
@@ -313,16 +317,16 @@ pub struct ThermalConfig {
     /// Upper edge of the calibrated temperature range, deg C. Default: none (no clamp above).
     pub t_max: Option<f64>,
     /// Refine the slope `p1` in the field from the EKF bias learned in
-    /// quasi-static stretches at different temperatures. Default false.
+    /// quasi-static stretches at different temperatures.
     pub learn: bool,
     /// Seconds after power-on before the slope learner takes any point (the
-    /// sensor's warm-up transient is not a thermal trend). Default 600.
+    /// sensor's warm-up transient is not a thermal trend).
     pub learn_after_s: f64,
     /// Temperature spread (max - min within one power cycle, deg C) the learner
-    /// must have seen before the slope moves at all. Default 5.
+    /// must have seen before the slope moves at all.
     pub learn_min_spread: f64,
     /// Largest change of the learned slope from the configured `p1`, per
-    /// axis, deg/s per deg C. Default 0.01 on every axis.
+    /// axis, deg/s per deg C.
     #[serde(deserialize_with = "exact_learn_max_dev")]
     pub learn_max_dev: [f64; 3],
 }
@@ -352,17 +356,17 @@ impl Default for ThermalConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct MekfConfig {
     /// Rate of the covariance propagation and the measurement updates, Hz
-    /// (the state is propagated at every sample). Default 25.
+    /// (the state is propagated at every sample).
     pub update_hz: f64,
     /// Relative gyro scale-factor and misalignment uncertainty: the tilt's
     /// variance grows by (this x angle turned)^2, the heading's by (this x
-    /// angle turned about the vertical)^2. Default 0.01.
+    /// angle turned about the vertical)^2.
     pub gyro_scale_error: f64,
     /// Floor of the 1-sigma of the tilt measured at rest (accelerometer
-    /// bias, a surface that is not quite still), deg. Default 0.05.
+    /// bias, a surface that is not quite still), deg.
     pub rest_tilt_sigma_deg: f64,
     /// Accelerometer and vehicle-model noise driving the velocity,
-    /// m/s^2/sqrt(Hz). Default 0.1.
+    /// m/s^2/sqrt(Hz).
     pub accel_noise: f64,
     /// The unit is in a ground vehicle: no lateral and no vertical velocity
     /// at the rear axle (`[mounting] lever_arm`). false: a unit that goes
@@ -372,45 +376,44 @@ pub struct MekfConfig {
     /// their 3-s mean by more than `handheld_rate_dps` (RMS over 3 s), which
     /// no car body does.
     pub vehicle: AutoBool,
-    /// See `vehicle = "auto"`, deg/s. Default 15.
+    /// See `vehicle = "auto"`, deg/s.
     pub handheld_rate_dps: f64,
-    /// 1-sigma of the vehicle constraint (sideslip, suspension), m/s. Default 0.3.
+    /// 1-sigma of the vehicle constraint (sideslip, suspension), m/s.
     pub nhc_sigma: f64,
     /// A vehicle's largest vertical speed, m/s: no road has the car climb or
     /// descend faster (7 % at 100 km/h). Beyond it the vertical velocity is
-    /// held to the bound (1-sigma 0.5 m/s); 0 turns the bound off. Default 2.
+    /// held to the bound (1-sigma 0.5 m/s); 0 turns the bound off.
     pub max_vertical_speed: f64,
     /// A vehicle's forward-speed band, m/s: with nothing else measuring
     /// it, a car's speed stays within `-max_reverse_speed ..
     /// max_forward_speed`; a forward velocity beyond is held to the bound
     /// (one-sided, never gated, 1-sigma `speed_bound_sigma`). Inside the
-    /// band it says nothing. 0 turns the bound off. Defaults 60, 5 and 1.
+    /// band it says nothing. 0 turns the bound off.
     pub max_forward_speed: f64,
     pub max_reverse_speed: f64,
     pub speed_bound_sigma: f64,
     /// The velocity noise of a quiet car, m/s^2/sqrt(Hz): a car cruising
     /// smoothly keeps its speed. It rises to `accel_noise` as the tick's
     /// acceleration (its mean beyond gravity and its vibration) reaches
-    /// `accel_ref`, m/s^2. Defaults 0.01 and 0.5.
+    /// `accel_ref`, m/s^2.
     pub accel_noise_quiet: f64,
     pub accel_ref: f64,
     /// The accelerometer's bias, g: the tilt takes it in at a stop; once
     /// the car has turned it drives the velocity, and a velocity that old
-    /// no longer refuses a standstill. Default 0.01.
+    /// no longer refuses a standstill.
     pub accel_bias_g: f64,
-    /// 1-sigma of the velocity of a unit that is not a vehicle, m/s. Default 1.0.
+    /// 1-sigma of the velocity of a unit that is not a vehicle, m/s.
     pub free_velocity_sigma: f64,
     /// Not a vehicle: time constant of the navigation-frame low-pass of the
-    /// specific force whose direction is fused as gravity, s. Default 3.
+    /// specific force whose direction is fused as gravity, s.
     pub accel_tau_s: f64,
     /// Not a vehicle: 1-sigma of that tilt measurement for a unit held
-    /// still or turned slowly, deg. Default 0.2.
+    /// still or turned slowly, deg.
     pub tilt_sigma_deg: f64,
     /// Not a vehicle: the share of the unit's acceleration in the motion
     /// band (periods of 0.3 to `accel_tau_s` s, RMS) taken to remain in the
     /// low-pass; it adds to that tilt's 1-sigma in quadrature, so that a
     /// unit moved back and forth is levelled loosely. 0 turns it off.
-    /// Default 0.03.
     pub tilt_motion_share: f64,
     /// Not a vehicle: random walk of the gyro bias while the unit moves,
     /// deg/s/sqrt(s). A hand-held MEMS gyro's error in motion is not its
@@ -418,33 +421,33 @@ pub struct MekfConfig {
     /// 1 deg over each 20-30 s of motion and comes back to its rest bias at
     /// the next rest); the bias is then learned in motion too, from the
     /// low-passed gravity, with this walk. 0: the paper's policy (the bias
-    /// is learned only when the data say quasi-static). Default 0.005.
+    /// is learned only when the data say quasi-static).
     pub motion_bias_walk: f64,
-    /// 1-sigma of the zero-velocity update at rest, m/s. Default 0.02.
+    /// 1-sigma of the zero-velocity update at rest, m/s.
     pub zupt_sigma: f64,
     /// Floor of the zero-rate update's 1-sigma at rest, deg/s (the measured
-    /// gyro noise over the rest is used when larger). Default 0.005.
+    /// gyro noise over the rest is used when larger).
     pub zru_sigma_dps: f64,
-    /// 1-sigma of the vehicle speed measurement, m/s. Default 0.1.
+    /// 1-sigma of the vehicle speed measurement, m/s.
     pub speed_sigma: f64,
-    /// Random walk of the speed scale (tyre radius), 1/sqrt(s). Default 1e-4.
+    /// Random walk of the speed scale (tyre radius), 1/sqrt(s).
     pub scale_walk: f64,
-    /// Innovation gate: a measurement with NIS > gate_sigma^2 is refused. Default 4.
+    /// Innovation gate: a measurement with NIS > gate_sigma^2 is refused.
     pub gate_sigma: f64,
     /// Seconds of refused standstill evidence after which the filter
-    /// re-levels on it (flagged). Default 1.5.
+    /// re-levels on it (flagged).
     pub relevel_s: f64,
-    /// 1-sigma of the velocity at power-on, m/s (the car may be moving). Default 15.
+    /// 1-sigma of the velocity at power-on, m/s (the car may be moving).
     pub init_speed_sigma: f64,
-    /// Relative change of the field's norm that counts as a magnetic disturbance. Default 0.1.
+    /// Relative change of the field's norm that counts as a magnetic disturbance.
     pub mag_norm_tol: f64,
-    /// Change of the field's dip angle that counts as a magnetic disturbance, deg. Default 6.
+    /// Change of the field's dip angle that counts as a magnetic disturbance, deg.
     pub mag_dip_tol_deg: f64,
     /// The paper's quasi-static conditions (inner band, acceleration-change
     /// criterion quiet, turn rate low) must hold this long before the bias
-    /// is learned outside a standstill, s. Default 2.
+    /// is learned outside a standstill, s.
     pub dwell_s: f64,
-    /// Largest bias-corrected rate still counted as quasi-static, deg/s. Default 3.
+    /// Largest bias-corrected rate still counted as quasi-static, deg/s.
     pub turn_rate_dps: f64,
     /// For ablation only: the filter's named situation rules to switch off
     /// (`src/estimator/mekf/rules.rs`, `gyrocomp evaluate --ablate`).
@@ -494,26 +497,26 @@ impl Default for MekfConfig {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RestConfig {
-    /// Time constant of the low-passes (signals and their deviations), s. Default 0.5.
+    /// Time constant of the low-passes (signals and their deviations), s.
     pub tau_s: f64,
-    /// The conditions must hold this long, s. Default 1.0.
+    /// The conditions must hold this long, s.
     pub min_s: f64,
     /// Largest RMS deviation of the gyro from its low-pass, deg/s (engine
-    /// idle vibration passes, driving does not). Default 0.6.
+    /// idle vibration passes, driving does not).
     pub gyro_dev_dps: f64,
     /// Largest RMS deviation of the specific force from its low-pass (summed
     /// over the axes), g: engine idle vibration of 0.02-0.04 g per axis
-    /// passes. Default 0.05.
+    /// passes.
     pub accel_dev_g: f64,
     /// Largest | |f|/g - 1 | of the low-passed specific force, with g the
     /// gravity this unit measures (g0 when it was steady while measured,
     /// then the mean |f| over its rests; before either, 3 % about 1 g). A
-    /// steady 0.1 g acceleration is 0.5 %. Default 0.005.
+    /// steady 0.1 g acceleration is 0.5 %.
     pub band: f64,
-    /// Largest low-passed bias-corrected rate, deg/s (plus three bias sigmas). Default 0.5.
+    /// Largest low-passed bias-corrected rate, deg/s (plus three bias sigmas).
     pub rate_dps: f64,
     /// Largest change of the low-passed specific force since the conditions
-    /// began, g (a car creeping away from a stop is not standing). Default 0.01.
+    /// began, g (a car creeping away from a stop is not standing).
     pub drift_g: f64,
 }
 
@@ -570,7 +573,7 @@ pub struct MountingConfig {
     #[serde(deserialize_with = "exact_rotation")]
     pub rotation: [f64; 3],
     /// Position of the sensor from the centre of the rear axle, vehicle
-    /// axes (x forward, y right, z down), m. Default `[0, 0, 0]`.
+    /// axes (x forward, y right, z down), m.
     #[serde(deserialize_with = "exact_lever_arm")]
     pub lever_arm: [f64; 3],
 }
@@ -593,9 +596,9 @@ pub struct SpeedConfig {
     /// Signal names in that message; their values are averaged. The unit is
     /// the DBC's (km/h, m/s or mph).
     pub signals: Vec<String>,
-    /// Factor applied to the decoded speed (e.g. a tyre correction). Default 1.
+    /// Factor applied to the decoded speed (e.g. a tyre correction).
     pub scale: f64,
-    /// A speed older than this is not used (and flagged), s. Default 0.5.
+    /// A speed older than this is not used (and flagged), s.
     pub timeout_s: f64,
 }
 
