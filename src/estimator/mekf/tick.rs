@@ -443,6 +443,15 @@ impl Mekf {
             let avar = self.last_rest.map_or(1e-4, |r| r.accel_var / 3.0);
             let r_tilt = (avar / n).max(self.p.tilt_floor);
             let nu = measure::tilt_innovation(&u);
+            // A cruise's tilt error has run into its velocity since the tilt
+            // was last right (the velocity integrates g times it): the tilt
+            // update corrects that velocity too, by their covariance, as an
+            // unrestricted Kalman update does. With the velocity held out, a
+            // smooth 0.03 g pull-away the rest detector takes for still put
+            // half a degree into the pitch and left the speed a third short,
+            // and the car, still crawling, later passed for stopped
+            // (`crawl` seed 3: 150 s still while moving; with it, 56 s).
+            let all = Gain { velocity: !at_rest, ..all };
             let mut h = [0.0; N];
             h[TH + 1] = 1.0;
             let up = self.update(&h, nu[0], r_tilt, all, gate);
