@@ -209,6 +209,23 @@ pub struct Estimator {
     nonfinite_restarts: u64,
 }
 
+/// What the filter in use made of one sample (`Estimator::step_filter`).
+#[derive(Clone, Copy, Debug)]
+struct FilterOut {
+    mode: u8,
+    flags: u16,
+    /// `|a| / g0` as the switching policy read it.
+    ratio: f64,
+    /// Roll, pitch, yaw, rad.
+    att: [f64; 3],
+    /// Bias, deg/s.
+    bias: [f64; 3],
+    /// A learning point for the thermal slope: (temp, bias deg/s, weight s).
+    slope_point: Option<(f64, [f64; 3], f64)>,
+    /// The filter's state is finite.
+    finite: bool,
+}
+
 /// The power-on speed hypotheses' outcome (`hypotheses`), for the summary
 /// and the status.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -482,96 +499,24 @@ impl Estimator {
 
     /// Step the estimator on one sample.
     pub fn step(&mut self, s: &Sample) -> Estimate {
-        let mut fl = 0u16;
-        let mut dt = s.steps as f64 * self.period;
         let (gyro, accel, magn) = match &self.mount {
             None => (s.gyro, s.accel, s.magn),
             Some(r) => (quat::rotate(r, &s.gyro), quat::rotate(r, &s.accel), quat::rotate(r, &s.magn)),
         };
         let mut inp =
             StepIn { dt: 0.0, t: 0.0, gyro, accel, magn, temp: s.temp, g0: self.g0.value(), dbias: [0.0; 3], suspect: s.suspect() };
-        let mut resync = false;
-        if !self.started {
-            self.start(&inp);
-            dt = 0.0;
-        } else if s.steps == 0 || dt > self.max_gap {
-            // Unknown or long gap: do not integrate the gyro across it.
-            fl |= flags::RESYNC;
-            resync = true;
-            dt = self.period;
-        }
-        self.t += dt;
+        let (dt, resync, mut fl) = self.advance_clock(s, &inp);
         let t = self.t;
-
-        // g0: mean |a| over the first g0_window seconds.
-        if self.g0.push(t, self.g0_window, &accel) {
-            fl |= flags::WARMUP;
-        }
-        if t < self.warmup && self.mode == Mode::Mekf {
-            fl |= flags::WARMUP;
-        }
-
-        if self.thermal_on && self.thermal.clamps(s.temp) {
-            fl |= flags::THERMAL_CLAMP;
-        }
-        let db = if self.thermal_on { self.thermal.delta(self.temp_prev, s.temp) } else { [0.0; 3] };
-        self.temp_prev = s.temp;
+        fl |= self.g0_and_thermal(t, s.temp, &accel, &mut inp);
         inp.dt = dt;
         inp.t = t;
-        inp.g0 = self.g0.value();
-        inp.dbias = db;
-
-        let thermal = &self.thermal;
-        let thermal_on = self.thermal_on;
-        let (mode, ffl, ratio, att, bias, slope_point, finite) = match &mut self.filter {
-            Filter::Paper(p) => {
-                if resync {
-                    p.resync();
-                }
-                let (mode, ffl, ratio, sp) = p.step(&inp, thermal_on, |a, b| thermal.delta(a, b));
-                let b = p.bias_deg();
-                (mode, ffl, ratio, p.attitude(), b, sp.then_some((s.temp, b, dt)), p.state_is_finite())
-            }
-            Filter::Mekf(m) => {
-                // a counter restart is a gap of unknown length
-                let gap = resync.then_some(if s.steps == 0 { UNKNOWN_GAP_S } else { s.steps as f64 * self.period });
-                if let Some(g) = gap {
-                    m.resync(g);
-                }
-                let (mut mode, mut ffl, mut ratio) = m.step(&inp);
-                if let Some(h) = self.hypotheses.as_mut() {
-                    let b = h.step(&inp, gap, m);
-                    if b.switched {
-                        // another filter is published: what its step returned
-                        (mode, ffl, ratio) = m.last_step();
-                    }
-                    self.power_on = Some(PowerOnSpeed { speed_ms: h.published_speed(), ended: b.ended.map(|e| (t, e)) });
-                    if b.ended.is_some() {
-                        self.hypotheses = None;
-                    }
-                }
-                let b = m.bias;
-                let sp = m.rest_point.take();
-                (mode, ffl, ratio, m.euler(), [b[0] * R2D, b[1] * R2D, b[2] * R2D], sp, m.started())
-            }
-        };
-        fl |= ffl;
+        let out = self.step_filter(s, &inp, resync);
+        fl |= out.flags;
         if s.suspect() {
             fl |= flags::SUSPECT;
         }
-
-        // Field learning of the thermal slope: the filter's learning points
-        // after `learn_after_s`, inside the calibrated range.
-        if let (Some((temp, b, w)), true) = (slope_point, t >= self.slope_after) {
-            if !self.thermal.clamps(temp) {
-                let c = self.thermal_base.bias(temp);
-                if let Some(l) = self.slope.as_mut() {
-                    l.push(temp, [b[0] - c[0], b[1] - c[1], b[2] - c[2]], w);
-                }
-                self.apply_slope();
-            }
-        }
-
+        self.learn_slope(out.slope_point, t);
+        let (att, bias) = (out.att, out.bias);
         let est = Estimate {
             cnt: s.cnt,
             t_us: s.t_us,
@@ -581,15 +526,116 @@ impl Estimator {
             yaw: att[2] * R2D,
             rate: [gyro[0] - bias[0], gyro[1] - bias[1], gyro[2] - bias[2]],
             bias,
-            mode,
+            mode: out.mode,
             temp: s.temp,
             flags: fl,
-            ratio,
+            ratio: out.ratio,
         };
-        if finite && est.is_finite() {
+        if out.finite && est.is_finite() {
             est
         } else {
             self.restart_nonfinite(&inp, est)
+        }
+    }
+
+    /// The time step from the sample counter (`steps / rate`), and the clock
+    /// moved on by it: 0 on the first sample, which starts the filter on
+    /// `inp`; one period over a counter restart or a gap longer than
+    /// `max_gap_s`, which is not integrated but a resync (flagged `RESYNC`).
+    /// Returns (dt, resync, flags).
+    fn advance_clock(&mut self, s: &Sample, inp: &StepIn) -> (f64, bool, u16) {
+        let mut fl = 0u16;
+        let mut dt = s.steps as f64 * self.period;
+        let mut resync = false;
+        if !self.started {
+            self.start(inp);
+            dt = 0.0;
+        } else if s.steps == 0 || dt > self.max_gap {
+            // Unknown or long gap: do not integrate the gyro across it.
+            fl |= flags::RESYNC;
+            resync = true;
+            dt = self.period;
+        }
+        self.t += dt;
+        (dt, resync, fl)
+    }
+
+    /// g0 (the mean |a| over the first `g0_window_s`, flagged `WARMUP`
+    /// while measured; the default filter's warm-up too) and the thermal
+    /// curve's change since the previous sample (`temp` deg C), which moves
+    /// the filter's bias; both into `inp`. Returns the flags.
+    fn g0_and_thermal(&mut self, t: f64, temp: f64, accel: &[f64; 3], inp: &mut StepIn) -> u16 {
+        let mut fl = 0u16;
+        if self.g0.push(t, self.g0_window, accel) {
+            fl |= flags::WARMUP;
+        }
+        if t < self.warmup && self.mode == Mode::Mekf {
+            fl |= flags::WARMUP;
+        }
+        if self.thermal_on && self.thermal.clamps(temp) {
+            fl |= flags::THERMAL_CLAMP;
+        }
+        let db = if self.thermal_on { self.thermal.delta(self.temp_prev, temp) } else { [0.0; 3] };
+        self.temp_prev = temp;
+        inp.g0 = self.g0.value();
+        inp.dbias = db;
+        fl
+    }
+
+    /// The filter in use on one sample, a resync first after a gap. The
+    /// default filter's power-on speed hypotheses step with it; when they
+    /// switch to another copy, that copy's step is what is published.
+    fn step_filter(&mut self, s: &Sample, inp: &StepIn, resync: bool) -> FilterOut {
+        let thermal = &self.thermal;
+        let thermal_on = self.thermal_on;
+        match &mut self.filter {
+            Filter::Paper(p) => {
+                if resync {
+                    p.resync();
+                }
+                let (mode, fl, ratio, sp) = p.step(inp, thermal_on, |a, b| thermal.delta(a, b));
+                let b = p.bias_deg();
+                let slope_point = sp.then_some((s.temp, b, inp.dt));
+                FilterOut { mode, flags: fl, ratio, att: p.attitude(), bias: b, slope_point, finite: p.state_is_finite() }
+            }
+            Filter::Mekf(m) => {
+                // a counter restart is a gap of unknown length
+                let gap = resync.then_some(if s.steps == 0 { UNKNOWN_GAP_S } else { s.steps as f64 * self.period });
+                if let Some(g) = gap {
+                    m.resync(g);
+                }
+                let (mut mode, mut fl, mut ratio) = m.step(inp);
+                if let Some(h) = self.hypotheses.as_mut() {
+                    let b = h.step(inp, gap, m);
+                    if b.switched {
+                        // another filter is published: what its step returned
+                        (mode, fl, ratio) = m.last_step();
+                    }
+                    self.power_on = Some(PowerOnSpeed { speed_ms: h.published_speed(), ended: b.ended.map(|e| (inp.t, e)) });
+                    if b.ended.is_some() {
+                        self.hypotheses = None;
+                    }
+                }
+                let b = m.bias;
+                let slope_point = m.rest_point.take();
+                let bias = [b[0] * R2D, b[1] * R2D, b[2] * R2D];
+                FilterOut { mode, flags: fl, ratio, att: m.euler(), bias, slope_point, finite: m.started() }
+            }
+        }
+    }
+
+    /// Field learning of the thermal slope: the filter's learning points
+    /// after `learn_after_s` (`t` s since power-on), inside the calibrated
+    /// range, correct the curve's slope.
+    fn learn_slope(&mut self, slope_point: Option<(f64, [f64; 3], f64)>, t: f64) {
+        if let (Some((temp, b, w)), true) = (slope_point, t >= self.slope_after) {
+            if !self.thermal.clamps(temp) {
+                let c = self.thermal_base.bias(temp);
+                if let Some(l) = self.slope.as_mut() {
+                    l.push(temp, [b[0] - c[0], b[1] - c[1], b[2] - c[2]], w);
+                }
+                self.apply_slope();
+            }
         }
     }
 

@@ -15,7 +15,7 @@
 use super::{flags, Learned, StepIn};
 use crate::config::{Config, Mode};
 use crate::estimator::ekf::{heading_from_mag, tilt_from_accel, wrap_pi, Ekf, Learn};
-use crate::estimator::switching::{Band, Switching};
+use crate::estimator::switching::{Band, Decision, Switching};
 use nalgebra::Vector3;
 
 const D2R: f64 = std::f64::consts::PI / 180.0;
@@ -125,61 +125,75 @@ impl Paper {
             if s.suspect {
                 fl |= flags::SUSPECT;
             } else if !dec.jerk && dec.band != Band::Outside {
-                let z = self.measure(s, self.ekf.att[0], self.ekf.att[1]);
-                if dec.band == Band::Inner {
-                    let r = Vector3::new(self.r_tilt, self.r_tilt, self.r_yaw);
-                    let learn = if warm { Learn::AnglesOnly } else { Learn::AnglesAndBias };
-                    self.ekf.update(&z, &r, self.use_mag, learn);
-                    mode = 0;
-                    if !warm {
-                        self.last_fused = Some((s.temp, self.bias_deg()));
-                    }
-                } else {
-                    // Blend: the accelerometer's weight falls linearly from the
-                    // inner to the outer band edge; its noise grows as 1/w.
-                    let w = dec.weight.max(1e-3);
-                    let r = Vector3::new(self.r_tilt / w, self.r_tilt / w, self.r_yaw / w);
-                    self.ekf.update(&z, &r, self.use_mag, Learn::AnglesOnly);
-                    mode = 1;
-                }
+                mode = self.fuse(s, &dec, warm);
             }
             if learning && mode == 0 {
-                let b = self.bias_deg();
-                for k in 0..3 {
-                    self.learn_sum[k] += b[k];
-                }
-                self.learn_temp_sum += s.temp;
-                self.learn_n += 1;
+                self.learn_point(self.bias_deg(), s.temp);
             }
         } else if s.suspect {
             fl |= flags::SUSPECT;
         } else if learning {
-            for k in 0..3 {
-                self.learn_sum[k] += s.gyro[k];
-            }
-            self.learn_temp_sum += s.temp;
-            self.learn_n += 1;
+            self.learn_point(s.gyro, s.temp);
         }
         // the slope learner takes quasi-static samples after the learning window
         let slope_point = self.mode == Mode::Paper && mode == 0 && self.learn_done;
 
         if !self.learn_done && t >= self.learn_end && !warm {
-            self.learn_done = true;
-            if self.learn_n > 0 {
-                // The window's mean becomes the bias, carried by the thermal
-                // curve from the window's mean temperature to now.
-                let n = self.learn_n as f64;
-                let tm = self.learn_temp_sum / n;
-                let d = if thermal_on { thermal_delta(tm, s.temp) } else { [0.0; 3] };
-                for k in 0..3 {
-                    self.ekf.bias[k] = (self.learn_sum[k] / n + d[k]) * D2R;
-                }
-                if self.mode == Mode::Paper {
-                    self.last_fused = Some((s.temp, self.bias_deg()));
-                }
-            }
+            self.end_learning(s.temp, thermal_on, thermal_delta);
         }
         (mode, fl, dec.ratio, slope_point)
+    }
+
+    /// `paper`, a sample inside the outer band without a jerk: the EKF
+    /// fuses roll/pitch from the accelerometer and the magnetic heading.
+    /// Inside the inner band it learns the bias too (after the warm-up;
+    /// mode 0); between the bands it blends (mode 1). Returns the mode.
+    fn fuse(&mut self, s: &StepIn, dec: &Decision, warm: bool) -> u8 {
+        let z = self.measure(s, self.ekf.att[0], self.ekf.att[1]);
+        if dec.band == Band::Inner {
+            let r = Vector3::new(self.r_tilt, self.r_tilt, self.r_yaw);
+            let learn = if warm { Learn::AnglesOnly } else { Learn::AnglesAndBias };
+            self.ekf.update(&z, &r, self.use_mag, learn);
+            if !warm {
+                self.last_fused = Some((s.temp, self.bias_deg()));
+            }
+            0
+        } else {
+            // Blend: the accelerometer's weight falls linearly from the
+            // inner to the outer band edge; its noise grows as 1/w.
+            let w = dec.weight.max(1e-3);
+            let r = Vector3::new(self.r_tilt / w, self.r_tilt / w, self.r_yaw / w);
+            self.ekf.update(&z, &r, self.use_mag, Learn::AnglesOnly);
+            1
+        }
+    }
+
+    /// One point of the learning window (deg/s: the EKF bias in `paper`,
+    /// the raw gyro in the comparison cases) at `temp` deg C.
+    fn learn_point(&mut self, b: [f64; 3], temp: f64) {
+        for k in 0..3 {
+            self.learn_sum[k] += b[k];
+        }
+        self.learn_temp_sum += temp;
+        self.learn_n += 1;
+    }
+
+    /// The learning window is over (`temp` deg C now): its mean becomes the
+    /// bias, carried by the thermal curve from the window's mean
+    /// temperature to now.
+    fn end_learning(&mut self, temp: f64, thermal_on: bool, thermal_delta: impl Fn(f64, f64) -> [f64; 3]) {
+        self.learn_done = true;
+        if self.learn_n > 0 {
+            let n = self.learn_n as f64;
+            let tm = self.learn_temp_sum / n;
+            let d = if thermal_on { thermal_delta(tm, temp) } else { [0.0; 3] };
+            for k in 0..3 {
+                self.ekf.bias[k] = (self.learn_sum[k] / n + d[k]) * D2R;
+            }
+            if self.mode == Mode::Paper {
+                self.last_fused = Some((temp, self.bias_deg()));
+            }
+        }
     }
 
     pub fn state_is_finite(&self) -> bool {

@@ -136,6 +136,85 @@ impl PullAways {
     pub(super) fn gap(&mut self) {
         self.armed = false;
     }
+
+    /// A still tick: sum its specific force with gravity put back (`down`,
+    /// the filter's, in the body frame), and arm the pull-away that follows.
+    /// Gravity put back with the filter's tilt leaves the tilt's error,
+    /// which the pull-away carries too and the difference drops.
+    fn sum_still(&mut self, a: &Accum, down: [f64; 3]) {
+        let n = a.n as f64;
+        if !self.armed {
+            self.armed = true;
+            self.rest_t = 0.0;
+            self.rest_sum = [0.0; 3];
+        }
+        self.rest_t += a.t;
+        for i in 0..3 {
+            self.rest_sum[i] += (a.accel[i] / n + down[i]) * a.t;
+        }
+        self.down = down;
+        self.t = 0.0;
+        self.sum_a = [0.0; 3];
+        self.sum_r = 0.0;
+    }
+
+    /// A moving tick after a still period, `w` its mean bias-corrected rate
+    /// (rad/s): sum its specific force with gravity put back, down as the
+    /// still period left it turned by the gyro since (the constraint held
+    /// along wrong axes moves the filter's own tilt). Once `PULL_WINDOW_S`
+    /// are summed the pull-away is over: returns the car's acceleration
+    /// across gravity (g, along the body x axis's part across down and
+    /// down × that) when it turned less than `PULL_MAX_TURN` and the plane
+    /// across gravity is well defined; None while summing or otherwise.
+    fn sum_motion(&mut self, a: &Accum, w: &[f64; 3]) -> Option<(f64, f64)> {
+        let n = a.n as f64;
+        let turn = quat::to_matrix(&quat::from_rotvec(&w.map(|v| v * a.t)));
+        self.down = rotate_t(&turn, &self.down);
+        let down = self.down;
+        for i in 0..3 {
+            self.sum_a[i] += (a.accel[i] / n + down[i]) * a.t;
+        }
+        self.sum_r += (0..3).map(|i| down[i] * w[i]).sum::<f64>() * a.t;
+        self.t += a.t;
+        if self.t < PULL_WINDOW_S {
+            return None;
+        }
+        self.armed = false;
+        // the acceleration: what the pull-away's force has more than the
+        // still period's (a cruise that just goes on has none)
+        let mean_a: [f64; 3] = std::array::from_fn(|i| self.sum_a[i] / self.t - self.rest_sum[i] / self.rest_t.max(1e-9));
+        let mean_r = self.sum_r / self.t;
+        // the plane across gravity: the body x axis across down, and down × that
+        let xd = down[0];
+        let e1 = [1.0 - xd * down[0], -xd * down[1], -xd * down[2]];
+        let e1n = norm(&e1);
+        if e1n < 0.3 || mean_r.abs() > PULL_MAX_TURN {
+            return None;
+        }
+        let e1 = e1.map(|v| v / e1n);
+        let e2 = cross(&down, &e1);
+        let x = (0..3).map(|i| mean_a[i] * e1[i]).sum::<f64>();
+        let y = (0..3).map(|i| mean_a[i] * e2[i]).sum::<f64>();
+        Some((x, y))
+    }
+
+    /// Take a pull-away whose acceleration across gravity is (`x`, `y`), g,
+    /// when it is at least `PULL_MIN_ACCEL`: its direction's angle (and the
+    /// doubled one, for the line without its sign) joins the sums. Returns
+    /// whether it was taken.
+    fn take(&mut self, x: f64, y: f64) -> bool {
+        let a2 = x * x + y * y;
+        if !a2.is_finite() || a2 < PULL_MIN_ACCEL * PULL_MIN_ACCEL {
+            return false;
+        }
+        let phi = quat::atan2(y, x);
+        self.c2 += (2.0 * phi).cos();
+        self.s2 += (2.0 * phi).sin();
+        self.c1 += phi.cos();
+        self.s1 += phi.sin();
+        self.n += 1;
+        true
+    }
 }
 
 impl Mekf {
@@ -148,71 +227,31 @@ impl Mekf {
             self.pulls.armed = false;
             return;
         }
-        let pa = &mut self.pulls;
+        if still {
+            self.pulls.sum_still(a, self.c[2]);
+            return;
+        }
+        if !self.pulls.armed {
+            return;
+        }
         let n = a.n as f64;
         let w: [f64; 3] = std::array::from_fn(|i| a.omega[i] / n);
-        if still {
-            // gravity put back with the filter's tilt: at the still period
-            // this leaves the tilt's error, which the pull-away carries too
-            let down = self.c[2];
-            if !pa.armed {
-                pa.armed = true;
-                pa.rest_t = 0.0;
-                pa.rest_sum = [0.0; 3];
-            }
-            pa.rest_t += a.t;
-            for i in 0..3 {
-                pa.rest_sum[i] += (a.accel[i] / n + down[i]) * a.t;
-            }
-            pa.down = down;
-            pa.t = 0.0;
-            pa.sum_a = [0.0; 3];
-            pa.sum_r = 0.0;
+        let Some((x, y)) = self.pulls.sum_motion(a, &w) else { return };
+        if !self.pulls.take(x, y) {
             return;
         }
-        if !pa.armed {
-            return;
-        }
-        // down as the still period left it, turned by the gyro since (the
-        // constraint held along wrong axes moves the filter's own tilt)
-        let turn = quat::to_matrix(&quat::from_rotvec(&w.map(|v| v * a.t)));
-        pa.down = rotate_t(&turn, &pa.down);
-        let down = pa.down;
-        for i in 0..3 {
-            pa.sum_a[i] += (a.accel[i] / n + down[i]) * a.t;
-        }
-        pa.sum_r += (0..3).map(|i| down[i] * w[i]).sum::<f64>() * a.t;
-        pa.t += a.t;
-        if pa.t < PULL_WINDOW_S {
-            return;
-        }
-        pa.armed = false;
-        // the acceleration: what the pull-away's force has more than the
-        // still period's (a cruise that just goes on has none)
-        let mean_a: [f64; 3] = std::array::from_fn(|i| pa.sum_a[i] / pa.t - pa.rest_sum[i] / pa.rest_t.max(1e-9));
-        let mean_r = pa.sum_r / pa.t;
-        // the plane across gravity: the body x axis across down, and down × that
-        let xd = down[0];
-        let e1 = [1.0 - xd * down[0], -xd * down[1], -xd * down[2]];
-        let e1n = norm(&e1);
-        if e1n < 0.3 || mean_r.abs() > PULL_MAX_TURN {
-            return;
-        }
-        let e1 = e1.map(|v| v / e1n);
-        let e2 = cross(&down, &e1);
-        let x = (0..3).map(|i| mean_a[i] * e1[i]).sum::<f64>();
-        let y = (0..3).map(|i| mean_a[i] * e2[i]).sum::<f64>();
-        let a2 = x * x + y * y;
-        if !a2.is_finite() || a2 < PULL_MIN_ACCEL * PULL_MIN_ACCEL {
-            return;
-        }
-        let phi = quat::atan2(y, x);
-        pa.c2 += (2.0 * phi).cos();
-        pa.s2 += (2.0 * phi).sin();
-        pa.c1 += phi.cos();
-        pa.s1 += phi.sin();
-        pa.n += 1;
-        let Some((yaw, forward_share)) = pa.agreed() else { return };
+        let Some((yaw, forward_share)) = self.pulls.agreed() else { return };
+        self.turn_axes(yaw, forward_share, x.hypot(y));
+    }
+
+    /// The pull-aways agree on the line `yaw` (rad about the body z axis,
+    /// forward as `forward_share` of them clearly went): turn the
+    /// constraint's axes to it when it is further than `REAXIS_ANGLE` from
+    /// those in use (with wheel speeds, also round when the unit is mounted
+    /// backwards), else let axes turned before follow its mean. A turn
+    /// opens the velocity by the speed the last pull-away reached at
+    /// `accel` (g) over its window.
+    fn turn_axes(&mut self, yaw: f64, forward_share: f64, accel: f64) {
         // the constraint has no forward or backward: the line's turn from
         // the axes in use, within +-90 deg
         let d = wrap_pi(2.0 * (yaw - self.axes.yaw)) / 2.0;
@@ -238,7 +277,7 @@ impl Mekf {
         self.counters.rules.note(Rule::PullAwayAxes);
         // the velocity since the still period was held along the wrong axes
         // for one pull-away: open it by the speed that pull-away reached
-        let dv = x.hypot(y) * G * PULL_WINDOW_S;
+        let dv = accel * G * PULL_WINDOW_S;
         for i in 0..3 {
             self.cov[VE + i][VE + i] += dv * dv;
         }

@@ -59,7 +59,7 @@ use super::quat::{self, cross, norm, rotate, rotate_t, Mat3, Quat};
 use super::rest::{GravityRef, RestDetector, RestState};
 use super::{flags, StepIn};
 use crate::estimator::ekf::wrap_pi;
-use crate::estimator::switching::{Band, Switching};
+use crate::estimator::switching::{Band, Decision, Switching};
 
 pub const N: usize = 10;
 const TH: usize = 0;
@@ -626,13 +626,36 @@ impl Mekf {
     /// One sample; returns (mode, flags, `|a| / g0` as the switching policy
     /// read it).
     pub fn step(&mut self, s: &StepIn) -> (u8, u16, f64) {
-        let dt = s.dt;
         let gyro = [s.gyro[0] * D2R, s.gyro[1] * D2R, s.gyro[2] * D2R];
+        let w = self.corrected_rate(&gyro, &s.dbias);
+        let wn = norm(&w);
+        self.set_step_length(s.dt);
+        if s.dt > 0.0 {
+            self.propagate_sample(s, &gyro, &w, wn);
+        }
+        self.decide_magnetometer(s);
+        // Policy: the paper's switching, the turn rate, the dwell.
+        let dec = self.switching.classify(&s.accel, s.g0);
+        let rest = self.push_rest(s, &gyro);
+        self.accumulate_sample(s, &gyro, &w, wn, &dec, rest);
+        let mut fl = 0u16;
+        if dec.jerk {
+            fl |= flags::JERK;
+        }
+        fl |= self.tick_when_due(s.temp);
+        self.last_step = (self.mode, fl | self.tick_flags, dec.ratio);
+        self.last_step
+    }
+
+    /// The bias-corrected rate of this sample (rad/s; `gyro` raw, rad/s),
+    /// with the thermal curve's change since the previous sample (`dbias`,
+    /// deg/s) moved into the bias first. The first sample after a counter
+    /// gap also turns the velocity's lever-arm part to the rate now.
+    fn corrected_rate(&mut self, gyro: &[f64; 3], dbias: &[f64; 3]) -> [f64; 3] {
         for i in 0..3 {
-            self.bias[i] += s.dbias[i] * D2R;
+            self.bias[i] += dbias[i] * D2R;
         }
         let w = [gyro[0] - self.bias[0], gyro[1] - self.bias[1], gyro[2] - self.bias[2]];
-        let wn = norm(&w);
         if self.lever_pending {
             // The velocity is the sensor's: it holds the lever arm's turn
             // (ω × l) at the rate before the gap. Turn it to the rate now.
@@ -644,70 +667,100 @@ impl Mekf {
             self.lever_pending = false;
         }
         self.last_w = w;
+        w
+    }
+
+    /// The low-pass gains for this step length (s): computed again only
+    /// when it changes, which a constant sample rate does only after gaps.
+    fn set_step_length(&mut self, dt: f64) {
         if dt != self.alpha_dt {
-            // the low-pass gains, for this step length (constant but after gaps)
             self.alpha_dt = dt;
             self.lp_gains = LpGains::new(dt, self.p.accel_tau);
             self.alpha_1s = dt.min(1.0);
         }
-        if dt > 0.0 {
-            let dq = quat::from_rotvec(&[w[0] * dt, w[1] * dt, w[2] * dt]);
-            self.q = quat::mul(&self.q, &dq);
-            // first-order renormalisation: |q| stays within 1e-15 of 1
-            let n2 = self.q[0] * self.q[0] + self.q[1] * self.q[1] + self.q[2] * self.q[2] + self.q[3] * self.q[3];
-            let k = 1.5 - 0.5 * n2;
-            for v in self.q.iter_mut() {
-                *v *= k;
-            }
-            self.c = quat::to_matrix(&self.q);
-            let f = rotate(&self.c, &s.accel);
-            match self.f_lp.as_mut() {
-                None => self.f_lp = Some(GravityLp::new(&f, &self.lp_gains)),
-                Some(lp) => lp.push(&f, &self.lp_gains),
-            }
-            // v' = (C f + e_z) g0 G: g0 is the unit's reading of 1 g. At rest
-            // this leaves g0 (1 - |f|) G, a few hundredths of m/s^2 that the
-            // zero-velocity update absorbs. The alternatives (standard
-            // gravity; f scaled by the rests' |f|) were measured on the
-            // simulator and the real recordings: none better beyond noise.
-            let gl = s.g0 * G;
-            let g_nav = if self.learns_level_rate() { rotate(&self.c, &gyro) } else { [0.0; 3] };
-            for i in 0..3 {
-                self.v[i] += f[i] * gl * dt;
-            }
-            self.v[2] += gl * dt;
-            let a = &mut self.acc;
-            for i in 0..3 {
-                for j in 0..3 {
-                    a.s_c[i][j] += self.c[i][j] * dt;
-                }
-                a.s_cg[i] += g_nav[i] * dt;
-                a.dv[i] += f[i] * gl * dt;
-            }
-            a.t += dt;
-            a.turned += wn * dt;
-            // the turn about the vertical: the heading's share of a scale error
-            let wz = self.c[2][0] * w[0] + self.c[2][1] * w[1] + self.c[2][2] * w[2];
-            a.turned_z += wz.abs() * dt;
-            self.watch_vehicle_model(&gyro, &s.accel);
+    }
+
+    /// Propagate the state over one sample (`dt > 0`): the attitude by the
+    /// bias-corrected rate `w`, the velocity by the specific force turned
+    /// into the navigation frame plus gravity, the low-passed gravity, and
+    /// the tick's sums from which the covariance's transition is built
+    /// exactly (`Φ_θb = -Σ C dt`, `Φ_vθ = -[Σ C f dt ×]`). `gyro` is the raw
+    /// rate (rad/s) the level-rate window and the motion model read.
+    fn propagate_sample(&mut self, s: &StepIn, gyro: &[f64; 3], w: &[f64; 3], wn: f64) {
+        let dt = s.dt;
+        self.integrate_attitude(w, dt);
+        let f = rotate(&self.c, &s.accel);
+        match self.f_lp.as_mut() {
+            None => self.f_lp = Some(GravityLp::new(&f, &self.lp_gains)),
+            Some(lp) => lp.push(&f, &self.lp_gains),
         }
-        // The magnetometer decision (auto): the mean |m| over the g0 window.
-        if self.mag_on.is_none() {
-            match self.p.mag {
-                MagUse::On => self.mag_on = Some(true),
-                MagUse::Off => self.mag_on = Some(false),
-                MagUse::Auto => {
-                    self.mag_sum += norm(&s.magn);
-                    self.mag_n += 1;
-                    if s.t >= self.p.g0_window_s {
-                        let m = self.mag_sum / self.mag_n as f64;
-                        self.mag_on = Some(m > 0.1 && m < 1.0);
-                    }
+        // v' = (C f + e_z) g0 G: g0 is the unit's reading of 1 g. At rest
+        // this leaves g0 (1 - |f|) G, a few hundredths of m/s^2 that the
+        // zero-velocity update absorbs. The alternatives (standard
+        // gravity; f scaled by the rests' |f|) were measured on the
+        // simulator and the real recordings: none better beyond noise.
+        let gl = s.g0 * G;
+        let g_nav = if self.learns_level_rate() { rotate(&self.c, gyro) } else { [0.0; 3] };
+        for i in 0..3 {
+            self.v[i] += f[i] * gl * dt;
+        }
+        self.v[2] += gl * dt;
+        let a = &mut self.acc;
+        for i in 0..3 {
+            for j in 0..3 {
+                a.s_c[i][j] += self.c[i][j] * dt;
+            }
+            a.s_cg[i] += g_nav[i] * dt;
+            a.dv[i] += f[i] * gl * dt;
+        }
+        a.t += dt;
+        a.turned += wn * dt;
+        // the turn about the vertical: the heading's share of a scale error
+        let wz = self.c[2][0] * w[0] + self.c[2][1] * w[1] + self.c[2][2] * w[2];
+        a.turned_z += wz.abs() * dt;
+        self.watch_vehicle_model(gyro, &s.accel);
+    }
+
+    /// Turn the attitude by the bias-corrected rate `w` (rad/s) over `dt`,
+    /// renormalise the quaternion and refresh its matrix.
+    fn integrate_attitude(&mut self, w: &[f64; 3], dt: f64) {
+        let dq = quat::from_rotvec(&[w[0] * dt, w[1] * dt, w[2] * dt]);
+        self.q = quat::mul(&self.q, &dq);
+        // first-order renormalisation: |q| stays within 1e-15 of 1
+        let n2 = self.q[0] * self.q[0] + self.q[1] * self.q[1] + self.q[2] * self.q[2] + self.q[3] * self.q[3];
+        let k = 1.5 - 0.5 * n2;
+        for v in self.q.iter_mut() {
+            *v *= k;
+        }
+        self.c = quat::to_matrix(&self.q);
+    }
+
+    /// The magnetometer decision, once: as configured, or (auto) whether the
+    /// mean |m| over the g0 window is an Earth field (0.1-1 gauss) rather
+    /// than a dead or saturated sensor.
+    fn decide_magnetometer(&mut self, s: &StepIn) {
+        if self.mag_on.is_some() {
+            return;
+        }
+        match self.p.mag {
+            MagUse::On => self.mag_on = Some(true),
+            MagUse::Off => self.mag_on = Some(false),
+            MagUse::Auto => {
+                self.mag_sum += norm(&s.magn);
+                self.mag_n += 1;
+                if s.t >= self.p.g0_window_s {
+                    let m = self.mag_sum / self.mag_n as f64;
+                    self.mag_on = Some(m > 0.1 && m < 1.0);
                 }
             }
         }
-        // Policy: the paper's switching, the turn rate, the dwell.
-        let dec = self.switching.classify(&s.accel, s.g0);
+    }
+
+    /// The standstill detector on this sample (`gyro` raw, rad/s); a
+    /// suspect sample resets it and gives None. What it says also tells
+    /// whether g0 is gravity.
+    fn push_rest(&mut self, s: &StepIn, gyro: &[f64; 3]) -> Option<RestState> {
+        let dt = s.dt;
         // Before the first standstill any steady rate may be the bias: the
         // first rest after power-on initialises it, whatever its size.
         let bs = if self.bias_known { self.bias_sigma_cache } else { [f64::INFINITY; 3] };
@@ -715,12 +768,21 @@ impl Mekf {
             self.rest.reset();
             None
         } else {
-            Some(self.rest.push(&gyro, &s.accel, dt.max(1e-6), self.g_ref.get(), &self.bias, bs))
+            Some(self.rest.push(gyro, &s.accel, dt.max(1e-6), self.g_ref.get(), &self.bias, bs))
         };
         // g0 is gravity only if the unit was steady while it was measured
         // (powered on while driving, it holds the car's acceleration); then
         // |f| at the rests
         self.g_ref.observe(rest.as_ref(), s.t, s.g0, self.p.g0_window_s, dt);
+        rest
+    }
+
+    /// Add the sample to the tick's sums, with what the policy says of it:
+    /// quasi-static (at rest, or quiet for `dwell_s`: inside the inner band,
+    /// no jerk, no turn, not suspect), at rest, quiet; and keep the rest
+    /// detector's last state and quietest deviations.
+    fn accumulate_sample(&mut self, s: &StepIn, gyro: &[f64; 3], w: &[f64; 3], wn: f64, dec: &Decision, rest: Option<RestState>) {
+        let dt = s.dt;
         let at_rest = rest.is_some_and(|r| r.rest);
         let turn = wn > self.p.turn_rate;
         let quiet = dec.band == Band::Inner && !dec.jerk && !turn && !s.suspect;
@@ -744,24 +806,24 @@ impl Mekf {
             q[0] = q[0].min(r.gyro_var);
             q[1] = q[1].min(r.accel_var);
         }
-        let mut fl = 0u16;
-        if dec.jerk {
-            fl |= flags::JERK;
-        }
+    }
+
+    /// The update tick once `tick_s` of samples are summed. A state gone
+    /// non-finite stops the filter (returns `RESYNC`): it cannot happen
+    /// with finite input, and a NaN must never get out.
+    fn tick_when_due(&mut self, temp: f64) -> u16 {
         if self.acc.t + 1e-9 >= self.p.tick_s {
-            self.tick(s.temp);
+            self.tick(temp);
             self.bias_sigma_cache = self.bias_sigma();
             if !self.state_is_finite() {
-                // cannot happen with finite input; never let a NaN out
                 self.started = false;
-                fl |= flags::RESYNC;
+                return flags::RESYNC;
             }
         } else if !self.q[0].is_finite() {
             self.started = false;
-            fl |= flags::RESYNC;
+            return flags::RESYNC;
         }
-        self.last_step = (self.mode, fl | self.tick_flags, dec.ratio);
-        self.last_step
+        0
     }
 
     /// The state at power-on (and at a restart): the attitude given, the

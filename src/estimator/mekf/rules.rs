@@ -5,7 +5,7 @@
 //! behaves as if the rule had never been written. Every rule is on by
 //! default; the default filter is the filter with none switched off.
 
-/// One named rule.
+/// One named rule (a new one needs its row in `RULES`, in this order).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Rule {
     Cruise,
@@ -37,37 +37,181 @@ pub enum Rule {
     MagNewNormal,
 }
 
-impl Rule {
-    /// Every rule, in the order of the ablation table.
-    pub const ALL: [Rule; 27] = [
+/// Every rule: its name in the config and the tables, what it does, and
+/// where it acts. In the enum's order, which is the ablation table's:
+/// `Rule::describe` finds a rule's row by its discriminant, and `Rule::ALL`
+/// is this column (checked at compile time below).
+const RULES: [(Rule, &str, &str, &str); 27] = [
+    (
         Rule::Cruise,
+        "cruise",
+        "a quiet period whose zero velocity the velocity state refuses (NIS beyond the gate) is a smooth cruise, not a stop",
+        "mekf/tick.rs, velocity_belief.rs",
+    ),
+    (
         Rule::VelocityAge,
+        "velocity_age",
+        "the velocity ages with the heading turned since the last stop (an accelerometer bias no longer cancels), letting a stop in",
+        "mekf/velocity_belief.rs",
+    ),
+    (
         Rule::TurningAtSpeed,
+        "turning_at_speed",
+        "a still period whose specific force lies along the centripetal acceleration of the filter's motion is a turn",
+        "mekf/tick.rs",
+    ),
+    (
         Rule::FieldTurned,
+        "field_turned",
+        "a still period during which the magnetic field turned in the car's frame is a turn",
+        "mekf/tick.rs",
+    ),
+    (
         Rule::GapVelocityUnknown,
+        "gap_velocity_unknown",
+        "the first quiet period after a counter gap is judged with the velocity unknown",
+        "mekf/tick.rs",
+    ),
+    (
         Rule::WheelStanding,
-        Rule::LevelRate,
+        "wheel_standing",
+        "with wheel speeds, the wheels decide that the car stands (0.5 s under 0.05 m/s), the IMU only that it is quiet",
+        "mekf/tick.rs",
+    ),
+    (Rule::LevelRate, "level_rate", "a car before its bias is read: its mean roll/pitch rate over 3 s is its bias's", "mekf/measure.rs"),
+    (
         Rule::LevelRoll,
-        Rule::VerticalSpeedBound,
+        "level_roll",
+        "a car with no heading reference before its bias is read: its roll is level within 3 deg",
+        "mekf/measure.rs",
+    ),
+    (Rule::VerticalSpeedBound, "vertical_speed_bound", "a car's vertical speed is held within max_vertical_speed", "mekf/measure.rs"),
+    (
         Rule::ForwardSpeedBound,
+        "forward_speed_bound",
+        "a car's forward speed is held within -max_reverse_speed..max_forward_speed",
+        "mekf/velocity_belief.rs",
+    ),
+    (
         Rule::QuietVelocityNoise,
+        "quiet_velocity_noise",
+        "a quiet car's velocity noise is accel_noise_quiet, rising with its acceleration and vibration (off: accel_noise always)",
+        "mekf/kalman.rs",
+    ),
+    (
         Rule::KnockNoise,
+        "knock_noise",
+        "a knock (vibration beyond 0.5 g within a tick) opens the velocity far beyond accel_noise",
+        "mekf/kalman.rs",
+    ),
+    (
         Rule::Relevel,
+        "relevel",
+        "a standstill whose evidence is refused for relevel_s re-levels the tilt, the bias and the velocity",
+        "mekf/tick.rs, measure.rs",
+    ),
+    (
         Rule::VelocityReacquire,
-        Rule::HeadingReacquire,
+        "velocity_reacquire",
+        "velocity constraints refused in motion for relevel_s widen the velocity",
+        "mekf/tick.rs",
+    ),
+    (Rule::HeadingReacquire, "heading_reacquire", "an undisturbed field refused for 5 s opens the heading to it", "mekf/measure.rs"),
+    (
         Rule::RestartLost,
+        "restart_lost",
+        "velocity constraints refused 80 % of the time (over 5 s) restart the filter from its prior",
+        "mekf/tick.rs",
+    ),
+    (
         Rule::RestartBiasRange,
+        "restart_bias_range",
+        "a bias beyond 4 prior sigmas before a standstill has read it restarts the filter from its prior",
+        "mekf/tick.rs",
+    ),
+    (
         Rule::PullAwayAxes,
+        "pull_away_axes",
+        "pull-aways after still periods turn the vehicle constraint's axes about the body z axis",
+        "mekf/forward_axis.rs",
+    ),
+    (
         Rule::SpeedHypotheses,
+        "speed_hypotheses",
+        "a car IMU only runs a bank of power-on forward speeds until a standstill every copy takes for one (at most 60 s)",
+        "hypotheses.rs",
+    ),
+    (
         Rule::FreeUnitCopy,
+        "free_unit_copy",
+        "the power-on bank runs a free-unit copy, published if the unit leaves the vehicle model",
+        "hypotheses.rs, mekf/motion_model.rs",
+    ),
+    (
         Rule::LeaveVehicleModel,
+        "leave_vehicle_model",
+        "vehicle = auto leaves the vehicle model when the roll/pitch rates swing like a hand's or the unit tilts past 45 deg",
+        "mekf/motion_model.rs",
+    ),
+    (
         Rule::RelevelFree,
+        "relevel_free",
+        "a free unit whose low-passed gravity is refused for relevel_s turns its tilt to it",
+        "mekf/measure.rs",
+    ),
+    (
         Rule::ProvisionalBias,
+        "provisional_bias",
+        "a free unit powered on in motion learns its bias in motion once its tilt has settled on the low-passed gravity",
+        "mekf/tick.rs",
+    ),
+    (
         Rule::GravityLag,
+        "gravity_lag",
+        "the low-passed gravity's lag of a bias error (tau C_lag db) is in its row while the bias is unread",
+        "mekf/measure.rs",
+    ),
+    (
         Rule::GapHeadingOpen,
+        "gap_heading_open",
+        "after a counter gap, a car's next magnetic heading turns the whole state (attitude and velocity) to it",
+        "mekf/gap.rs",
+    ),
+    (
         Rule::MagRefRetake,
+        "mag_ref_retake",
+        "the field's reference taken before the tilt was anchored is taken again once it is",
+        "mekf/measure.rs, tick.rs",
+    ),
+    (
         Rule::MagNewNormal,
-    ];
+        "mag_new_normal",
+        "a field disturbed for a minute and steady at a rest becomes the new reference",
+        "mekf/measure.rs",
+    ),
+];
+
+// `Rule::describe` indexes `RULES` by `Rule as usize`: every row must sit
+// at its rule's discriminant.
+const _: () = {
+    let mut i = 0;
+    while i < RULES.len() {
+        assert!(RULES[i].0 as usize == i, "RULES must list the rules in the enum's order");
+        i += 1;
+    }
+};
+
+impl Rule {
+    /// Every rule, in the order of the ablation table (`RULES`' first column).
+    pub const ALL: [Rule; RULES.len()] = {
+        let mut all = [Rule::Cruise; RULES.len()];
+        let mut i = 0;
+        while i < all.len() {
+            all[i] = RULES[i].0;
+            i += 1;
+        }
+        all
+    };
 
     /// The rule's name in the config and the tables.
     pub fn name(self) -> &'static str {
@@ -76,139 +220,8 @@ impl Rule {
 
     /// (name, what it does, where).
     pub fn describe(self) -> (&'static str, &'static str, &'static str) {
-        match self {
-            Rule::Cruise => (
-                "cruise",
-                "a quiet period whose zero velocity the velocity state refuses (NIS beyond the gate) is a smooth cruise, not a stop",
-                "mekf/tick.rs, velocity_belief.rs",
-            ),
-            Rule::VelocityAge => (
-                "velocity_age",
-                "the velocity ages with the heading turned since the last stop (an accelerometer bias no longer cancels), letting a stop in",
-                "mekf/velocity_belief.rs",
-            ),
-            Rule::TurningAtSpeed => (
-                "turning_at_speed",
-                "a still period whose specific force lies along the centripetal acceleration of the filter's motion is a turn",
-                "mekf/tick.rs",
-            ),
-            Rule::FieldTurned => (
-                "field_turned",
-                "a still period during which the magnetic field turned in the car's frame is a turn",
-                "mekf/tick.rs",
-            ),
-            Rule::GapVelocityUnknown => (
-                "gap_velocity_unknown",
-                "the first quiet period after a counter gap is judged with the velocity unknown",
-                "mekf/tick.rs",
-            ),
-            Rule::WheelStanding => (
-                "wheel_standing",
-                "with wheel speeds, the wheels decide that the car stands (0.5 s under 0.05 m/s), the IMU only that it is quiet",
-                "mekf/tick.rs",
-            ),
-            Rule::LevelRate => (
-                "level_rate",
-                "a car before its bias is read: its mean roll/pitch rate over 3 s is its bias's",
-                "mekf/measure.rs",
-            ),
-            Rule::LevelRoll => (
-                "level_roll",
-                "a car with no heading reference before its bias is read: its roll is level within 3 deg",
-                "mekf/measure.rs",
-            ),
-            Rule::VerticalSpeedBound => {
-                ("vertical_speed_bound", "a car's vertical speed is held within max_vertical_speed", "mekf/measure.rs")
-            }
-            Rule::ForwardSpeedBound => (
-                "forward_speed_bound",
-                "a car's forward speed is held within -max_reverse_speed..max_forward_speed",
-                "mekf/velocity_belief.rs",
-            ),
-            Rule::QuietVelocityNoise => (
-                "quiet_velocity_noise",
-                "a quiet car's velocity noise is accel_noise_quiet, rising with its acceleration and vibration (off: accel_noise always)",
-                "mekf/kalman.rs",
-            ),
-            Rule::KnockNoise => {
-                ("knock_noise", "a knock (vibration beyond 0.5 g within a tick) opens the velocity far beyond accel_noise", "mekf/kalman.rs")
-            }
-            Rule::Relevel => (
-                "relevel",
-                "a standstill whose evidence is refused for relevel_s re-levels the tilt, the bias and the velocity",
-                "mekf/tick.rs, measure.rs",
-            ),
-            Rule::VelocityReacquire => (
-                "velocity_reacquire",
-                "velocity constraints refused in motion for relevel_s widen the velocity",
-                "mekf/tick.rs",
-            ),
-            Rule::HeadingReacquire => (
-                "heading_reacquire",
-                "an undisturbed field refused for 5 s opens the heading to it",
-                "mekf/measure.rs",
-            ),
-            Rule::RestartLost => (
-                "restart_lost",
-                "velocity constraints refused 80 % of the time (over 5 s) restart the filter from its prior",
-                "mekf/tick.rs",
-            ),
-            Rule::RestartBiasRange => (
-                "restart_bias_range",
-                "a bias beyond 4 prior sigmas before a standstill has read it restarts the filter from its prior",
-                "mekf/tick.rs",
-            ),
-            Rule::PullAwayAxes => (
-                "pull_away_axes",
-                "pull-aways after still periods turn the vehicle constraint's axes about the body z axis",
-                "mekf/forward_axis.rs",
-            ),
-            Rule::SpeedHypotheses => (
-                "speed_hypotheses",
-                "a car IMU only runs a bank of power-on forward speeds until a standstill every copy takes for one (at most 60 s)",
-                "hypotheses.rs",
-            ),
-            Rule::FreeUnitCopy => (
-                "free_unit_copy",
-                "the power-on bank runs a free-unit copy, published if the unit leaves the vehicle model",
-                "hypotheses.rs, mekf/motion_model.rs",
-            ),
-            Rule::LeaveVehicleModel => (
-                "leave_vehicle_model",
-                "vehicle = auto leaves the vehicle model when the roll/pitch rates swing like a hand's or the unit tilts past 45 deg",
-                "mekf/motion_model.rs",
-            ),
-            Rule::RelevelFree => (
-                "relevel_free",
-                "a free unit whose low-passed gravity is refused for relevel_s turns its tilt to it",
-                "mekf/measure.rs",
-            ),
-            Rule::ProvisionalBias => (
-                "provisional_bias",
-                "a free unit powered on in motion learns its bias in motion once its tilt has settled on the low-passed gravity",
-                "mekf/tick.rs",
-            ),
-            Rule::GravityLag => (
-                "gravity_lag",
-                "the low-passed gravity's lag of a bias error (tau C_lag db) is in its row while the bias is unread",
-                "mekf/measure.rs",
-            ),
-            Rule::GapHeadingOpen => (
-                "gap_heading_open",
-                "after a counter gap, a car's next magnetic heading turns the whole state (attitude and velocity) to it",
-                "mekf/gap.rs",
-            ),
-            Rule::MagRefRetake => (
-                "mag_ref_retake",
-                "the field's reference taken before the tilt was anchored is taken again once it is",
-                "mekf/measure.rs, tick.rs",
-            ),
-            Rule::MagNewNormal => (
-                "mag_new_normal",
-                "a field disturbed for a minute and steady at a rest becomes the new reference",
-                "mekf/measure.rs",
-            ),
-        }
+        let (_, name, what, place) = RULES[self as usize];
+        (name, what, place)
     }
 
     /// The rule of this name.
