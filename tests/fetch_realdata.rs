@@ -87,7 +87,10 @@ fn broad_hdf5_converts_checks_and_scores() {
     names.sort();
     assert_eq!(names, ["ATTRIBUTION.md", "imu.csv.gz", "info.json", "reference.csv.gz"]);
     for n in &names {
-        assert!(std::fs::read(folder.join(n)).unwrap() == std::fs::read(b.join(TRIAL).join(n)).unwrap(), "{n:?} differs between two conversions");
+        assert!(
+            std::fs::read(folder.join(n)).unwrap() == std::fs::read(b.join(TRIAL).join(n)).unwrap(),
+            "{n:?} differs between two conversions"
+        );
     }
 
     // a mismatch is refused, nothing written
