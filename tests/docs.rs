@@ -76,7 +76,7 @@ fn every_relative_link_resolves() {
                 if !(file.is_empty() || file.contains("://") || file.starts_with("mailto:")) {
                     assert!(Path::new(dir).join(file).exists(), "{}:{}: link to {target} does not resolve", p.display(), i + 1);
                     assert!(
-                        !dir.join(file).canonicalize().unwrap().strip_prefix(repo().canonicalize().unwrap()).is_err(),
+                        dir.join(file).canonicalize().unwrap().starts_with(repo().canonicalize().unwrap()),
                         "{}:{}: {target} is outside the repository",
                         p.display(),
                         i + 1
