@@ -161,7 +161,7 @@ fn realdata_table_ours_and_vqf() {
         }
         // Ours (issue 11): no divergence, and within reach of VQF on the same
         // samples wherever the mount came from a window at rest. (Not every
-        // RMS is at or below VQF's: see the README's real-data section.)
+        // RMS is at or below VQF's: see docs/results.md, "Real recordings".)
         let u = &r["ours"];
         if r["alignment"]["looks_at_rest"].as_bool() == Some(true) {
             let (rm, pm) = (u["roll"]["max"].as_f64().unwrap(), u["pitch"]["max"].as_f64().unwrap());
