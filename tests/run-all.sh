@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The whole test suite, as README says: installs what the tests need when it is
-# missing (python cantools; qemu, busybox, can-utils and a Debian kernel with the
+# missing (python cantools and mcap; qemu, busybox, can-utils and a Debian kernel with the
 # CAN modules for the vcan VM; debootstrap for the systemd VM), then runs
 # `cargo test --release` (unit, integration, property, vcan and systemd tests)
 # and builds the benchmarks.
@@ -10,6 +10,10 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 if ! python3 -c "import cantools" 2>/dev/null; then
     echo "[run-all] installing python cantools"
     python3 -m pip install --quiet --disable-pip-version-check cantools
+fi
+if ! python3 -c "import mcap" 2>/dev/null; then
+    echo "[run-all] installing python mcap (the reader tests/mcap.rs checks replay --mcap with)"
+    python3 -m pip install --quiet --disable-pip-version-check mcap
 fi
 echo "[run-all] preparing the vcan / systemd test harness"
 bash tests/vm/prepare.sh
