@@ -8,13 +8,13 @@
 //! | `/tf` | `foxglove.FrameTransform` | estimate: `world` (ENU) -> `base_link` (FLU) |
 //! | `/gyrocomp/estimate` | `gyrocomp.Estimate` | estimate: attitude (NED/FRD), corrected rates, bias, temperature, mode, flags |
 //! | `/can/rx` | `gyrocomp.CanFrame` | input frame pushed into the pipeline |
-//! | `/truth/estimate`, `/vqf/estimate` | `gyrocomp.Attitude` | evaluated sample (`evaluate --mcap`) |
-//! | `/truth/tf`, `/vqf/tf` | `foxglove.FrameTransform` | `world` -> `base_link_truth` / `base_link_vqf` |
+//! | `/truth/estimate` | `gyrocomp.Attitude` | evaluated sample (`evaluate --input DIR --mcap`): the simulated truth |
+//! | `/truth/tf` | `foxglove.FrameTransform` | evaluated sample: `world` -> `base_link_truth` |
 //!
 //! Deterministic bytes: log and publish times are the frames' own timestamps
 //! (the candump stamp of the frame that closed a sample), never the clock of
-//! the run; the library string is gyrocomp's; chunks are 1 MiB, zstd at its
-//! default level on one thread (the zstd crate's multithreaded mode would
+//! the run; the library string is gyrocomp's; chunks are 1 MiB, zstd level 1 on one
+//! thread (the zstd crate's multithreaded mode would
 //! depend on the machine's cores). The file goes through [`OutFile`]:
 //! temp and rename. A non-finite number is never written: it is an error
 //! naming the topic and the time.
@@ -31,6 +31,9 @@ use std::path::Path;
 
 /// Uncompressed bytes per chunk (fixed: the chunking is part of the bytes).
 pub const CHUNK_SIZE: u64 = 1 << 20;
+/// zstd's fastest positive level: a 10-minute replay's MCAP is 37 MB at 1
+/// and 38 MB at the default 3, which costs a third more time (docs/mcap.md).
+pub const ZSTD_LEVEL: u32 = 1;
 /// The parent frame of every transform (REP-103 `world`, ENU).
 pub const WORLD_FRAME: &str = "world";
 /// The vehicle frame (REP-103 `base_link`, FLU).
@@ -83,13 +86,13 @@ pub fn estimate_schema() -> String {
 /// `gyrocomp.Attitude`: a reference (truth) or a peer (VQF) beside the estimate.
 pub fn attitude_schema() -> String {
     format!(
-        r#"{{"title":"gyrocomp.Attitude","description":"An attitude beside gyrocomp's: Z-Y-X Euler of the FRD body in NED (deg), and for a peer its bias (FRD, deg/s)","type":"object","properties":{{"timestamp":{TIME},"t":{{"type":"number"}},"roll":{{"type":"number"}},"pitch":{{"type":"number"}},"yaw":{{"type":"number"}},"bias":{}}}}}"#,
-        xyz("gyro bias, FRD, deg/s (absent for the truth)")
+        r#"{{"title":"gyrocomp.Attitude","description":"An attitude beside gyrocomp's (the simulated truth): Z-Y-X Euler of the FRD body in NED (deg) and the bias (FRD, deg/s)","type":"object","properties":{{"timestamp":{TIME},"t":{{"type":"number"}},"roll":{{"type":"number"}},"pitch":{{"type":"number"}},"yaw":{{"type":"number"}},"bias":{}}}}}"#,
+        xyz("gyro bias, FRD, deg/s")
     )
 }
 
 /// `gyrocomp.CanFrame`.
-pub const CAN_FRAME_SCHEMA: &str = r#"{"title":"gyrocomp.CanFrame","description":"A raw CAN frame as read from the candump log","type":"object","properties":{"timestamp":{"type":"object","title":"time","properties":{"sec":{"type":"integer","minimum":0},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}},"id":{"type":"integer","description":"arbitration ID"},"extended":{"type":"boolean"},"remote":{"type":"boolean"},"fd":{"type":"boolean"},"len":{"type":"integer","description":"payload bytes (DLC)"},"data":{"type":"array","items":{"type":"integer","minimum":0,"maximum":255}}}}"#;
+pub const CAN_FRAME_SCHEMA: &str = r#"{"title":"gyrocomp.CanFrame","description":"A raw CAN frame as read from the candump log","type":"object","properties":{"timestamp":{"type":"object","title":"time","properties":{"sec":{"type":"integer","minimum":0},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}},"id":{"type":"integer","description":"arbitration ID"},"extended":{"type":"boolean","description":"29-bit ID (absent: false)"},"remote":{"type":"boolean","description":"RTR (absent: false)"},"fd":{"type":"boolean","description":"CAN FD (absent: false)"},"len":{"type":"integer","description":"payload bytes (DLC)"},"data":{"type":"string","description":"payload bytes, hex, as candump writes them"}}}"#;
 
 /// The flags as `gyrocomp.Estimate.flag` names them.
 pub const FLAG_NAMES: [(&str, u16); 14] = {
@@ -126,15 +129,22 @@ impl Time {
 
 #[derive(Serialize)]
 struct Xyz {
-    x: f64,
-    y: f64,
-    z: f64,
+    x: f32,
+    y: f32,
+    z: f32,
 }
 
 impl From<[f64; 3]> for Xyz {
     fn from(v: [f64; 3]) -> Xyz {
-        Xyz { x: v[0], y: v[1], z: v[2] }
+        Xyz { x: v[0] as f32, y: v[1] as f32, z: v[2] as f32 }
     }
+}
+
+#[derive(Serialize)]
+struct Xyz64 {
+    x: f64,
+    y: f64,
+    z: f64,
 }
 
 #[derive(Serialize)]
@@ -150,7 +160,7 @@ struct FrameTransform<'a> {
     timestamp: Time,
     parent_frame_id: &'a str,
     child_frame_id: &'a str,
-    translation: Xyz,
+    translation: Xyz64,
     rotation: Quat,
 }
 
@@ -159,14 +169,14 @@ struct EstimateMsg<'a> {
     timestamp: Time,
     t: f64,
     cnt: u16,
-    roll: f64,
-    pitch: f64,
-    yaw: f64,
+    roll: f32,
+    pitch: f32,
+    yaw: f32,
     rate: Xyz,
     bias: Xyz,
-    temp: f64,
+    temp: f32,
     mode: u8,
-    accel_ratio: f64,
+    accel_ratio: f32,
     flags: u16,
     flag: FlagBits<'a>,
 }
@@ -188,9 +198,9 @@ impl Serialize for FlagBits<'_> {
 struct AttitudeMsg {
     timestamp: Time,
     t: f64,
-    roll: f64,
-    pitch: f64,
-    yaw: f64,
+    roll: f32,
+    pitch: f32,
+    yaw: f32,
     #[serde(skip_serializing_if = "Option::is_none")]
     bias: Option<Xyz>,
 }
@@ -199,11 +209,34 @@ struct AttitudeMsg {
 struct CanMsg<'a> {
     timestamp: Time,
     id: u32,
+    #[serde(skip_serializing_if = "no")]
     extended: bool,
+    #[serde(skip_serializing_if = "no")]
     remote: bool,
+    #[serde(skip_serializing_if = "no")]
     fd: bool,
     len: usize,
-    data: &'a [u8],
+    data: Hex<'a>,
+}
+
+fn no(b: &bool) -> bool {
+    !*b
+}
+
+/// Payload bytes as upper-case hex, as candump writes them.
+struct Hex<'a>(&'a [u8]);
+
+impl Serialize for Hex<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        const D: &[u8; 16] = b"0123456789ABCDEF";
+        let mut b = [0u8; 128];
+        let n = self.0.len().min(64);
+        for (i, x) in self.0[..n].iter().enumerate() {
+            b[2 * i] = D[(x >> 4) as usize];
+            b[2 * i + 1] = D[(x & 15) as usize];
+        }
+        s.serialize_str(std::str::from_utf8(&b[..2 * n]).unwrap_or_default())
+    }
 }
 
 /// `[w, x, y, z]` of the FRD body in NED from Z-Y-X Euler angles (deg):
@@ -244,8 +277,6 @@ pub enum Topic {
     CanRx,
     TruthTf,
     TruthEstimate,
-    VqfTf,
-    VqfEstimate,
 }
 
 impl Topic {
@@ -256,27 +287,24 @@ impl Topic {
             Topic::CanRx => "/can/rx",
             Topic::TruthTf => "/truth/tf",
             Topic::TruthEstimate => "/truth/estimate",
-            Topic::VqfTf => "/vqf/tf",
-            Topic::VqfEstimate => "/vqf/estimate",
         }
     }
-    const ALL: [Topic; 7] =
-        [Topic::Tf, Topic::Estimate, Topic::CanRx, Topic::TruthTf, Topic::TruthEstimate, Topic::VqfTf, Topic::VqfEstimate];
+    const ALL: [Topic; 5] = [Topic::Tf, Topic::Estimate, Topic::CanRx, Topic::TruthTf, Topic::TruthEstimate];
 }
 
 /// The MCAP being written; see the module docs.
 pub struct McapFile {
     w: Writer<NoSeek<OutFile>>,
     /// Channel id and the next sequence number, by `Topic as usize`.
-    ch: [Option<(u16, u32)>; 7],
+    ch: [Option<(u16, u32)>; 5],
     buf: Vec<u8>,
 }
 
 impl McapFile {
-    /// Start `dest` with the replay's channels, plus `/truth/*` and
-    /// `/vqf/*` when asked for (evaluate). A directory, or a name whose
+    /// Start `dest` with the replay's channels, plus `/truth/*` when asked
+    /// for (evaluate). A directory, or a name whose
     /// directory does not exist, is refused before anything is created.
-    pub fn create(dest: &Path, truth: bool, vqf: bool) -> Result<McapFile, McapError> {
+    pub fn create(dest: &Path, truth: bool) -> Result<McapFile, McapError> {
         if let Some(dir) = dest.parent().filter(|d| !d.as_os_str().is_empty()) {
             if !dir.is_dir() {
                 return Err(McapError::NoDir(dir.display().to_string()));
@@ -287,7 +315,7 @@ impl McapFile {
             .library(format!("gyrocomp {}", env!("CARGO_PKG_VERSION")))
             .profile("")
             .compression(Some(mcap::Compression::Zstd))
-            .compression_level(0)
+            .compression_level(ZSTD_LEVEL)
             .compression_threads(0)
             .chunk_size(Some(CHUNK_SIZE))
             .use_chunks(true)
@@ -296,8 +324,8 @@ impl McapFile {
         let ft = w.add_schema("foxglove.FrameTransform", "jsonschema", FRAME_TRANSFORM_SCHEMA.as_bytes())?;
         let est = w.add_schema("gyrocomp.Estimate", "jsonschema", estimate_schema().as_bytes())?;
         let can = w.add_schema("gyrocomp.CanFrame", "jsonschema", CAN_FRAME_SCHEMA.as_bytes())?;
-        let att = if truth || vqf { Some(w.add_schema("gyrocomp.Attitude", "jsonschema", attitude_schema().as_bytes())?) } else { None };
-        let mut ch = [None; 7];
+        let att = if truth { Some(w.add_schema("gyrocomp.Attitude", "jsonschema", attitude_schema().as_bytes())?) } else { None };
+        let mut ch = [None; 5];
         let meta = BTreeMap::new();
         for t in Topic::ALL {
             let schema = match t {
@@ -305,9 +333,7 @@ impl McapFile {
                 Topic::Estimate => est,
                 Topic::CanRx => can,
                 Topic::TruthTf if truth => ft,
-                Topic::VqfTf if vqf => ft,
                 Topic::TruthEstimate if truth => att.unwrap_or(est),
-                Topic::VqfEstimate if vqf => att.unwrap_or(est),
                 _ => continue,
             };
             ch[t as usize] = Some((w.add_channel(schema, t.name(), "json", &meta)?, 0));
@@ -345,7 +371,7 @@ impl McapFile {
             timestamp: Time::from_us(t_us),
             parent_frame_id: WORLD_FRAME,
             child_frame_id: child,
-            translation: Xyz { x: 0.0, y: 0.0, z: 0.0 },
+            translation: Xyz64 { x: 0.0, y: 0.0, z: 0.0 },
             rotation: Quat { x: q[1], y: q[2], z: q[3], w: q[0] },
         };
         self.write(topic, t_us, &msg)
@@ -362,14 +388,14 @@ impl McapFile {
             timestamp: Time::from_us(e.t_us),
             t: e.t,
             cnt: e.cnt,
-            roll: e.roll,
-            pitch: e.pitch,
-            yaw: e.yaw,
+            roll: e.roll as f32,
+            pitch: e.pitch as f32,
+            yaw: e.yaw as f32,
             rate: e.rate.into(),
             bias: e.bias.into(),
-            temp: e.temp,
+            temp: e.temp as f32,
             mode: e.mode,
-            accel_ratio: e.ratio,
+            accel_ratio: e.ratio as f32,
             flags: e.flags,
             flag: FlagBits(&e.flags),
         };
@@ -385,19 +411,15 @@ impl McapFile {
             remote: f.remote,
             fd: f.fd,
             len: f.data.len(),
-            data: f.data,
+            data: Hex(f.data),
         };
         self.write(Topic::CanRx, t_us, &msg)
     }
 
-    /// The truth (`/truth/*`, child `base_link_truth`) at `t_us`: NED/FRD Euler, deg.
-    pub fn truth(&mut self, t_us: u64, t: f64, rpy: [f64; 3]) -> Result<(), McapError> {
-        self.beside(Topic::TruthTf, Topic::TruthEstimate, "base_link_truth", t_us, t, rpy, None)
-    }
-
-    /// VQF's estimate (`/vqf/*`, child `base_link_vqf`): NED/FRD Euler (deg), bias (deg/s).
-    pub fn vqf(&mut self, t_us: u64, t: f64, rpy: [f64; 3], bias: [f64; 3]) -> Result<(), McapError> {
-        self.beside(Topic::VqfTf, Topic::VqfEstimate, "base_link_vqf", t_us, t, rpy, Some(bias))
+    /// The truth (`/truth/*`, child `base_link_truth`) at `t_us`: NED/FRD
+    /// Euler (deg) and the true bias (FRD, deg/s).
+    pub fn truth(&mut self, t_us: u64, t: f64, rpy: [f64; 3], bias: [f64; 3]) -> Result<(), McapError> {
+        self.beside(Topic::TruthTf, Topic::TruthEstimate, "base_link_truth", t_us, t, rpy, Some(bias))
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -416,7 +438,14 @@ impl McapFile {
             Self::finite(est, "bias", t_us, b)?;
         }
         self.tf(tf, child, t_us, rpy)?;
-        let msg = AttitudeMsg { timestamp: Time::from_us(t_us), t, roll: rpy[0], pitch: rpy[1], yaw: rpy[2], bias: bias.map(Xyz::from) };
+        let msg = AttitudeMsg {
+            timestamp: Time::from_us(t_us),
+            t,
+            roll: rpy[0] as f32,
+            pitch: rpy[1] as f32,
+            yaw: rpy[2] as f32,
+            bias: bias.map(Xyz::from),
+        };
         self.write(est, t_us, &msg)
     }
 
@@ -428,25 +457,98 @@ impl McapFile {
     }
 }
 
-/// A [`crate::pipeline::Sink`] part for `replay --mcap`: the first error is kept.
+/// What the replay hands to the MCAP thread.
+enum Rec {
+    Estimate(Estimate),
+    Can { t_us: u64, id: u32, extended: bool, remote: bool, fd: bool, len: u8, data: [u8; 8] },
+}
+
+const BATCH: usize = 4096;
+
+/// The [`crate::pipeline::Sink`] part of `replay --mcap`: estimates and input
+/// frames are batched to a thread of their own, which encodes and writes
+/// them in the order received (the JSON and the compression are most of the
+/// MCAP's cost, and would otherwise hold up the sink's other outputs). The
+/// first error stops the thread and comes back from [`McapSink::finish`].
 pub struct McapSink {
-    pub file: McapFile,
-    pub err: Option<McapError>,
+    cur: Vec<Rec>,
+    tx: Option<std::sync::mpsc::SyncSender<Vec<Rec>>>,
+    back: std::sync::mpsc::Receiver<Vec<Rec>>,
+    handle: Option<std::thread::JoinHandle<Result<McapFile, McapError>>>,
 }
 
 impl McapSink {
-    pub fn output(&mut self, e: &Estimate) {
-        if self.err.is_none() {
-            if let Err(x) = self.file.estimate(e) {
-                self.err = Some(x);
-            }
+    pub fn new(mut file: McapFile) -> McapSink {
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Rec>>(4);
+        let (back_tx, back) = std::sync::mpsc::sync_channel::<Vec<Rec>>(8);
+        let handle = std::thread::Builder::new()
+            .name("mcap".into())
+            .spawn(move || {
+                for mut batch in rx {
+                    for r in batch.drain(..) {
+                        match r {
+                            Rec::Estimate(e) => file.estimate(&e)?,
+                            Rec::Can { t_us, id, extended, remote, fd, len, data } => {
+                                file.can(t_us, &RawFrame { id, extended, remote, fd, data: &data[..len as usize] })?
+                            }
+                        }
+                    }
+                    let _ = back_tx.try_send(batch);
+                }
+                Ok(file)
+            })
+            .expect("spawning the mcap thread");
+        McapSink { cur: Vec::with_capacity(BATCH), tx: Some(tx), back, handle: Some(handle) }
+    }
+
+    fn push(&mut self, r: Rec) {
+        self.cur.push(r);
+        if self.cur.len() == BATCH {
+            self.flush();
         }
     }
+
+    fn flush(&mut self) {
+        if self.cur.is_empty() {
+            return;
+        }
+        let next = self.back.try_recv().unwrap_or_else(|_| Vec::with_capacity(BATCH));
+        if let Some(tx) = &self.tx {
+            // a send fails only when the thread stopped on an error: finish says it
+            let _ = tx.send(std::mem::replace(&mut self.cur, next));
+        }
+    }
+
+    pub fn output(&mut self, e: &Estimate) {
+        self.push(Rec::Estimate(*e));
+    }
+
     pub fn input(&mut self, t_us: u64, f: &RawFrame<'_>) {
-        if self.err.is_none() {
-            if let Err(x) = self.file.can(t_us, f) {
-                self.err = Some(x);
-            }
+        let n = f.data.len().min(8);
+        let mut data = [0u8; 8];
+        data[..n].copy_from_slice(&f.data[..n]);
+        self.push(Rec::Can { t_us, id: f.id, extended: f.extended, remote: f.remote, fd: f.fd, len: n as u8, data });
+    }
+
+    /// Everything written: the file, ready for [`McapFile::commit`], or the first error.
+    pub fn finish(mut self) -> Result<McapFile, McapError> {
+        self.flush();
+        self.tx = None;
+        match self.handle.take().map(|h| h.join()) {
+            Some(Ok(r)) => r,
+            Some(Err(_)) => Err(McapError::Io(io::Error::other("the mcap thread panicked"))),
+            None => Err(McapError::Io(io::Error::other("the mcap thread already finished"))),
+        }
+    }
+}
+
+impl Drop for McapSink {
+    /// Not finished (the replay failed): stop the thread; its file is dropped
+    /// and so its temporary file removed.
+    fn drop(&mut self) {
+        self.tx = None;
+        if let Some(h) = self.handle.take() {
+            let _ = h.join();
         }
     }
 }
@@ -506,14 +608,14 @@ mod tests {
             timestamp: Time::from_us(e.t_us),
             t: e.t,
             cnt: e.cnt,
-            roll: e.roll,
-            pitch: e.pitch,
-            yaw: e.yaw,
+            roll: e.roll as f32,
+            pitch: e.pitch as f32,
+            yaw: e.yaw as f32,
             rate: e.rate.into(),
             bias: e.bias.into(),
-            temp: e.temp,
+            temp: e.temp as f32,
             mode: e.mode,
-            accel_ratio: e.ratio,
+            accel_ratio: e.ratio as f32,
             flags: e.flags,
             flag: FlagBits(&e.flags),
         };
@@ -536,15 +638,17 @@ mod tests {
             remote: false,
             fd: false,
             len: 3,
-            data: &data,
+            data: Hex(&data),
         })
         .unwrap();
-        assert_eq!(
-            c,
-            r#"{"timestamp":{"sec":0,"nsec":5000},"id":256,"extended":false,"remote":false,"fd":false,"len":3,"data":[1,2,255]}"#
-        );
+        assert_eq!(c, r#"{"timestamp":{"sec":0,"nsec":5000},"id":256,"len":3,"data":"0102FF"}"#);
         let schema: serde_json::Value = serde_json::from_str(CAN_FRAME_SCHEMA).unwrap();
-        assert_eq!(keys(&serde_json::from_str(&c).unwrap()), keys(&schema["properties"]));
+        let mut k = keys(&serde_json::from_str(&c).unwrap());
+        k.extend(["extended", "fd", "remote"].map(String::from));
+        k.sort();
+        let mut want = keys(&schema["properties"]);
+        want.sort();
+        assert_eq!(k, want);
         let ft: serde_json::Value = serde_json::from_str(FRAME_TRANSFORM_SCHEMA).unwrap();
         assert_eq!(ft["title"], "foxglove.FrameTransform");
         let _: serde_json::Value = serde_json::from_str(&attitude_schema()).unwrap();
@@ -554,7 +658,7 @@ mod tests {
     fn a_non_finite_value_is_an_error_and_not_written() {
         let d = tempfile::tempdir().unwrap();
         let p = d.path().join("x.mcap");
-        let mut f = McapFile::create(&p, false, false).unwrap();
+        let mut f = McapFile::create(&p, false).unwrap();
         let mut e = est();
         f.estimate(&e).unwrap();
         e.bias[1] = f64::NAN;
@@ -568,9 +672,9 @@ mod tests {
     #[test]
     fn a_directory_or_a_missing_directory_is_refused() {
         let d = tempfile::tempdir().unwrap();
-        let e = McapFile::create(d.path(), false, false).err().unwrap().to_string();
+        let e = McapFile::create(d.path(), false).err().unwrap().to_string();
         assert!(e.contains("is a directory"), "{e}");
-        let e = McapFile::create(&d.path().join("no/such/x.mcap"), false, false).err().unwrap().to_string();
+        let e = McapFile::create(&d.path().join("no/such/x.mcap"), false).err().unwrap().to_string();
         assert!(e.contains("no/such") && e.contains("does not exist"), "{e}");
     }
 }

@@ -95,7 +95,7 @@ pub struct ReplaySink<'a, W: Write, C: Write> {
     pub csv: Option<&'a mut C>,
     /// Every estimate, when the caller wants them in memory (evaluation).
     pub keep: Option<&'a mut Vec<Estimate>>,
-    /// `--mcap`: the estimates and the input frames (its errors kept there).
+    /// `--mcap`: the estimates and the input frames (its errors come back from its `finish`).
     pub mcap: Option<&'a mut McapSink>,
     pub err: Option<io::Error>,
 }
@@ -431,7 +431,7 @@ pub fn replay_files(cfg: &Config, files: &ReplayFiles<'_>, keep: Option<&mut Vec
         move |source| ReplayError::Mcap { path, source }
     };
     let mut mcap = match files.mcap {
-        Some(p) => Some(McapSink { file: McapFile::create(p, false, false).map_err(mcap_err(p))?, err: None }),
+        Some(p) => Some(McapSink::new(McapFile::create(p, false).map_err(mcap_err(p))?)),
         None => None,
     };
     let speed = crate::speed::load(cfg).map_err(|e| ReplayError::Refused(format!("config: {e}")))?;
@@ -441,21 +441,24 @@ pub fn replay_files(cfg: &Config, files: &ReplayFiles<'_>, keep: Option<&mut Vec
     if let Some(e) = sink.err.take() {
         return Err(ReplayError::Output { path: out_name(files), source: e });
     }
-    if let (Some(e), Some(p)) = (mcap.as_mut().and_then(|m| m.err.take()), files.mcap) {
-        return Err(mcap_err(p)(e));
-    }
+    drop(sink);
     if sum.input.samples == 0 {
         // Nothing to write: leave no output that looks like a result.
         return Ok(sum);
     }
+    // the MCAP's errors before any output is committed
+    let mcap = match (mcap, files.mcap) {
+        (Some(m), Some(p)) => Some((m.finish().map_err(mcap_err(p))?, p)),
+        _ => None,
+    };
     if let (Some(l), Some(p)) = (log, files.output) {
         l.finish().and_then(OutFile::commit).map_err(out_err(p))?;
     }
     if let (Some(c), Some(p)) = (csv, files.csv) {
         c.commit().map_err(out_err(p))?;
     }
-    if let (Some(m), Some(p)) = (mcap, files.mcap) {
-        m.file.commit().map_err(mcap_err(p))?;
+    if let Some((m, p)) = mcap {
+        m.commit().map_err(mcap_err(p))?;
     }
     Ok(sum)
 }

@@ -81,7 +81,7 @@ def main():
                     fail(f"{t}: |q| = {n} at {m.log_time}")
                 if d["parent_frame_id"] != "world" or not d["child_frame_id"].startswith("base_link"):
                     fail(f"{t}: frames {d['parent_frame_id']} -> {d['child_frame_id']}")
-            if schema.name == "gyrocomp.CanFrame" and len(d["data"]) != d["len"]:
+            if schema.name == "gyrocomp.CanFrame" and len(d["data"]) != 2 * d["len"]:
                 fail(f"{t}: len {d['len']} with {len(d['data'])} bytes")
         for t in want:
             n = counts.get(t, 0)
