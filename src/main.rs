@@ -29,20 +29,21 @@ enum Cmd {
         input: PathBuf,
         /// Write the output frames here as a candump log (on the config's [can] interface), each
         /// stamped with the time of the input frame that closed its sample.
-        /// At least one of --output and --csv is required.
+        /// At least one of --output, --csv and --mcap is required.
         #[arg(long, value_name = "OUT.log")]
         output: Option<PathBuf>,
         /// Write one CSV row per sample here: t (s from the first sample, by the
         /// sample counter), roll, pitch, yaw (deg), rate_x..z (deg/s), bias_x..z
         /// (deg/s), mode (0 fusion, 1 aided, 2 gyro only), temp (deg C).
-        /// At least one of --output and --csv is required.
+        /// At least one of --output, --csv and --mcap is required.
         #[arg(long, value_name = "EST.csv")]
         csv: Option<PathBuf>,
         /// Write an MCAP recording here for Foxglove / PlotJuggler (docs/mcap.md):
         /// the attitude as foxglove.FrameTransform on /tf (world ENU -> base_link
         /// FLU), the estimate (rates, bias, temperature, mode, flags) on
         /// /gyrocomp/estimate, the input frames on /can/rx; JSON messages, log
-        /// times from the frames' own timestamps.
+        /// times from the frames' own timestamps. At least one of --output, --csv
+        /// and --mcap is required.
         #[arg(long, value_name = "OUT.mcap")]
         mcap: Option<PathBuf>,
     },

@@ -219,6 +219,7 @@ pub struct EvaluateArgs {
     /// With --input DIR (a simulate directory): write an MCAP recording here
     /// (docs/mcap.md): replay's channels for the default case, and the
     /// simulated truth beside them on /truth/tf and /truth/estimate.
+    /// Default: no recording.
     #[arg(long, value_name = "OUT.mcap", requires = "input", conflicts_with_all = ["seeds", "ablate"])]
     pub mcap: Option<PathBuf>,
     /// Real data: --reference, --realdata, --peers, --offset, --align-s (`gyrocomp::reference`).
