@@ -10,6 +10,7 @@
 //! | `/can/rx` | `gyrocomp.CanFrame` | input frame pushed into the pipeline |
 //! | `/truth/estimate` | `gyrocomp.Attitude` | evaluated sample (`evaluate --input DIR --mcap`): the simulated truth |
 //! | `/truth/tf` | `foxglove.FrameTransform` | evaluated sample: `world` -> `base_link_truth` |
+//! | `/vqf/estimate`, `/vqf/tf` | `gyrocomp.Attitude`, `foxglove.FrameTransform` | evaluated sample (`evaluate --input DIR --peers --mcap`): VQF's attitude, `base_link_vqf` |
 //!
 //! Deterministic bytes: log and publish times are the frames' own timestamps
 //! (the candump stamp of the frame that closed a sample), never the clock of
@@ -86,7 +87,7 @@ pub fn estimate_schema() -> String {
 /// `gyrocomp.Attitude`: a reference (truth) or a peer (VQF) beside the estimate.
 pub fn attitude_schema() -> String {
     format!(
-        r#"{{"title":"gyrocomp.Attitude","description":"An attitude beside gyrocomp's (the simulated truth): Z-Y-X Euler of the FRD body in NED (deg) and the bias (FRD, deg/s)","type":"object","properties":{{"timestamp":{TIME},"t":{{"type":"number"}},"roll":{{"type":"number"}},"pitch":{{"type":"number"}},"yaw":{{"type":"number"}},"bias":{}}}}}"#,
+        r#"{{"title":"gyrocomp.Attitude","description":"An attitude beside gyrocomp's (the simulated truth, a peer filter): Z-Y-X Euler of the FRD body in NED (deg) and the bias (FRD, deg/s; the truth's, absent for a peer)","type":"object","properties":{{"timestamp":{TIME},"t":{{"type":"number"}},"roll":{{"type":"number"}},"pitch":{{"type":"number"}},"yaw":{{"type":"number"}},"bias":{}}}}}"#,
         xyz("gyro bias, FRD, deg/s")
     )
 }
@@ -277,6 +278,8 @@ pub enum Topic {
     CanRx,
     TruthTf,
     TruthEstimate,
+    VqfTf,
+    VqfEstimate,
 }
 
 impl Topic {
@@ -287,24 +290,27 @@ impl Topic {
             Topic::CanRx => "/can/rx",
             Topic::TruthTf => "/truth/tf",
             Topic::TruthEstimate => "/truth/estimate",
+            Topic::VqfTf => "/vqf/tf",
+            Topic::VqfEstimate => "/vqf/estimate",
         }
     }
-    const ALL: [Topic; 5] = [Topic::Tf, Topic::Estimate, Topic::CanRx, Topic::TruthTf, Topic::TruthEstimate];
+    const ALL: [Topic; 7] =
+        [Topic::Tf, Topic::Estimate, Topic::CanRx, Topic::TruthTf, Topic::TruthEstimate, Topic::VqfTf, Topic::VqfEstimate];
 }
 
 /// The MCAP being written; see the module docs.
 pub struct McapFile {
     w: Writer<NoSeek<OutFile>>,
     /// Channel id and the next sequence number, by `Topic as usize`.
-    ch: [Option<(u16, u32)>; 5],
+    ch: [Option<(u16, u32)>; 7],
     buf: Vec<u8>,
 }
 
 impl McapFile {
-    /// Start `dest` with the replay's channels, plus `/truth/*` when asked
-    /// for (evaluate). A directory, or a name whose
+    /// Start `dest` with the replay's channels, plus `/truth/*` and `/vqf/*`
+    /// when asked for (evaluate). A directory, or a name whose
     /// directory does not exist, is refused before anything is created.
-    pub fn create(dest: &Path, truth: bool) -> Result<McapFile, McapError> {
+    pub fn create(dest: &Path, truth: bool, vqf: bool) -> Result<McapFile, McapError> {
         if let Some(dir) = dest.parent().filter(|d| !d.as_os_str().is_empty()) {
             if !dir.is_dir() {
                 return Err(McapError::NoDir(dir.display().to_string()));
@@ -324,8 +330,8 @@ impl McapFile {
         let ft = w.add_schema("foxglove.FrameTransform", "jsonschema", FRAME_TRANSFORM_SCHEMA.as_bytes())?;
         let est = w.add_schema("gyrocomp.Estimate", "jsonschema", estimate_schema().as_bytes())?;
         let can = w.add_schema("gyrocomp.CanFrame", "jsonschema", CAN_FRAME_SCHEMA.as_bytes())?;
-        let att = if truth { Some(w.add_schema("gyrocomp.Attitude", "jsonschema", attitude_schema().as_bytes())?) } else { None };
-        let mut ch = [None; 5];
+        let att = if truth || vqf { Some(w.add_schema("gyrocomp.Attitude", "jsonschema", attitude_schema().as_bytes())?) } else { None };
+        let mut ch = [None; 7];
         let meta = BTreeMap::new();
         for t in Topic::ALL {
             let schema = match t {
@@ -334,6 +340,8 @@ impl McapFile {
                 Topic::CanRx => can,
                 Topic::TruthTf if truth => ft,
                 Topic::TruthEstimate if truth => att.unwrap_or(est),
+                Topic::VqfTf if vqf => ft,
+                Topic::VqfEstimate if vqf => att.unwrap_or(est),
                 _ => continue,
             };
             ch[t as usize] = Some((w.add_channel(schema, t.name(), "json", &meta)?, 0));
@@ -420,6 +428,11 @@ impl McapFile {
     /// Euler (deg) and the true bias (FRD, deg/s).
     pub fn truth(&mut self, t_us: u64, t: f64, rpy: [f64; 3], bias: [f64; 3]) -> Result<(), McapError> {
         self.beside(Topic::TruthTf, Topic::TruthEstimate, "base_link_truth", t_us, t, rpy, Some(bias))
+    }
+
+    /// VQF's attitude (`/vqf/*`, child `base_link_vqf`) at `t_us`: NED/FRD Euler, deg.
+    pub fn vqf(&mut self, t_us: u64, t: f64, rpy: [f64; 3]) -> Result<(), McapError> {
+        self.beside(Topic::VqfTf, Topic::VqfEstimate, "base_link_vqf", t_us, t, rpy, None)
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -658,7 +671,7 @@ mod tests {
     fn a_non_finite_value_is_an_error_and_not_written() {
         let d = tempfile::tempdir().unwrap();
         let p = d.path().join("x.mcap");
-        let mut f = McapFile::create(&p, false).unwrap();
+        let mut f = McapFile::create(&p, false, false).unwrap();
         let mut e = est();
         f.estimate(&e).unwrap();
         e.bias[1] = f64::NAN;
@@ -672,9 +685,9 @@ mod tests {
     #[test]
     fn a_directory_or_a_missing_directory_is_refused() {
         let d = tempfile::tempdir().unwrap();
-        let e = McapFile::create(d.path(), false).err().unwrap().to_string();
+        let e = McapFile::create(d.path(), false, false).err().unwrap().to_string();
         assert!(e.contains("is a directory"), "{e}");
-        let e = McapFile::create(&d.path().join("no/such/x.mcap"), false).err().unwrap().to_string();
+        let e = McapFile::create(&d.path().join("no/such/x.mcap"), false, false).err().unwrap().to_string();
         assert!(e.contains("no/such") && e.contains("does not exist"), "{e}");
     }
 }

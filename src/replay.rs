@@ -431,7 +431,7 @@ pub fn replay_files(cfg: &Config, files: &ReplayFiles<'_>, keep: Option<&mut Vec
         move |source| ReplayError::Mcap { path, source }
     };
     let mut mcap = match files.mcap {
-        Some(p) => Some(McapSink::new(McapFile::create(p, false).map_err(mcap_err(p))?)),
+        Some(p) => Some(McapSink::new(McapFile::create(p, false, false).map_err(mcap_err(p))?)),
         None => None,
     };
     let speed = crate::speed::load(cfg).map_err(|e| ReplayError::Refused(format!("config: {e}")))?;

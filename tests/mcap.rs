@@ -111,7 +111,7 @@ fn a_bad_mcap_path_is_refused_by_name() {
 }
 
 #[test]
-fn evaluate_mcap_has_the_truth_beside_the_estimate() {
+fn evaluate_mcap_has_the_truth_and_vqf_beside_the_estimate() {
     let d = tempfile::tempdir().unwrap();
     let sim = d.path().join("sim");
     let o = Command::new(common::bin())
@@ -121,7 +121,7 @@ fn evaluate_mcap_has_the_truth_beside_the_estimate() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let m = d.path().join("eval.mcap");
-    let eval = || Command::new(common::bin()).args(["evaluate", "--input"]).arg(&sim).arg("--mcap").arg(&m).output().unwrap();
+    let eval = || Command::new(common::bin()).args(["evaluate", "--peers", "--input"]).arg(&sim).arg("--mcap").arg(&m).output().unwrap();
     let o = eval();
     let so = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{so}{}", String::from_utf8_lossy(&o.stderr));
@@ -132,6 +132,9 @@ fn evaluate_mcap_has_the_truth_beside_the_estimate() {
     // with --seeds there is no one run to record: refused by clap
     let o = Command::new(common::bin()).args(["evaluate", "--seeds", "1", "--scenario", "static", "--mcap"]).arg(&m).output().unwrap();
     assert!(!o.status.success());
+    // --peers with --input DIR means something only for the recording
+    let o = Command::new(common::bin()).args(["evaluate", "--peers", "--input"]).arg(&sim).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--peers"));
 
     if !python_mcap() {
         return;
@@ -143,10 +146,15 @@ fn evaluate_mcap_has_the_truth_beside_the_estimate() {
         .arg(&m)
         .arg(samples.to_string())
         .arg(frames.to_string())
-        .args(["/truth/tf=foxglove.FrameTransform", "/truth/estimate=gyrocomp.Attitude"])
+        .args([
+            "/truth/tf=foxglove.FrameTransform",
+            "/truth/estimate=gyrocomp.Attitude",
+            "/vqf/tf=foxglove.FrameTransform",
+            "/vqf/estimate=gyrocomp.Attitude",
+        ])
         .output()
         .unwrap();
     let so = String::from_utf8_lossy(&py.stdout);
     assert!(py.status.success(), "{so}{}", String::from_utf8_lossy(&py.stderr));
-    assert!(so.contains(&format!("mcap ok: 5 channels, {samples} samples")), "{so}");
+    assert!(so.contains(&format!("mcap ok: 7 channels, {samples} samples")), "{so}");
 }

@@ -55,7 +55,7 @@ pub fn evaluate_dir_with(cfg: &Config, dir: &Path, o: &EvalOptions, config_path:
             let inputs: Vec<PathBuf> = RUN_FILES.iter().map(|f| dir.join(f)).chain(config_path.map(Path::to_path_buf)).collect();
             let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
             crate::outfile::refuse_inputs_as_outputs(&inputs, &[p.as_path()])?;
-            Some((McapFile::create(p, true).map_err(|e| format!("cannot write {}: {e}", p.display()))?, p))
+            Some((McapFile::create(p, true, o.peers).map_err(|e| format!("cannot write {}: {e}", p.display()))?, p))
         }
         None => None,
     };
@@ -101,7 +101,17 @@ pub fn evaluate_dir_with(cfg: &Config, dir: &Path, o: &EvalOptions, config_path:
         out += "(oracle floor: the measured gyro with the deterministic error known exactly, integrated from the true attitude at the window's start)\n";
     }
     if let Some((f, p)) = mcap.take() {
-        write_mcap(f, &dir.join("imu.log"), &data, &est).map_err(|e| format!("cannot write {}: {e}", p.display()))?;
+        let vqf = if o.peers {
+            let samples = data.samples(cfg)?;
+            if samples.len() != est.len() {
+                return Err(format!("{} samples decoded for {} estimates: VQF cannot be recorded beside them", samples.len(), est.len()));
+            }
+            let magn = crate::reference::magnetometer_configured(cfg);
+            Some(crate::peers::run_vqf(&samples, 1.0 / cfg.profile().rate_hz, magn))
+        } else {
+            None
+        };
+        write_mcap(f, &dir.join("imu.log"), &data, &est, vqf.as_deref()).map_err(|e| format!("cannot write {}: {e}", p.display()))?;
         out += &format!("wrote {}\n", p.display());
     }
     if let Some(rd) = &o.out {
@@ -132,8 +142,9 @@ pub fn evaluate_dir_with(cfg: &Config, dir: &Path, o: &EvalOptions, config_path:
 
 /// `evaluate --input DIR --mcap`: the input frames of `log`, the default
 /// case's estimates and the simulated truth beside them (sample `i` of
-/// each, stamped with the estimate's frame time), then renamed into place.
-pub fn write_mcap(mut f: McapFile, log: &Path, data: &RunData, est: &[Estimate]) -> Result<(), McapError> {
+/// each, stamped with the estimate's frame time), with `vqf` VQF's attitude
+/// per sample too, then renamed into place.
+pub fn write_mcap(mut f: McapFile, log: &Path, data: &RunData, est: &[Estimate], vqf: Option<&[[f64; 3]]>) -> Result<(), McapError> {
     let input = std::fs::File::open(log)?;
     let mut rd = crate::candump::LineReader::new(input);
     while let Some(line) = rd.next_line()? {
@@ -146,9 +157,12 @@ pub fn write_mcap(mut f: McapFile, log: &Path, data: &RunData, est: &[Estimate])
             }
         }
     }
-    for ((e, t), b) in est.iter().zip(&data.truth).zip(&data.bias) {
+    for (i, ((e, t), b)) in est.iter().zip(&data.truth).zip(&data.bias).enumerate() {
         f.estimate(e)?;
         f.truth(e.t_us, t.t, t.att, *b)?;
+        if let Some(v) = vqf {
+            f.vqf(e.t_us, e.t, v[i])?;
+        }
     }
     f.commit()
 }

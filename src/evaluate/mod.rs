@@ -218,8 +218,9 @@ pub struct EvaluateArgs {
     pub rules: Option<String>,
     /// With --input DIR (a simulate directory): write an MCAP recording here
     /// (docs/mcap.md): replay's channels for the default case, and the
-    /// simulated truth beside them on /truth/tf and /truth/estimate.
-    /// Default: no recording.
+    /// simulated truth beside them on /truth/tf and /truth/estimate; with
+    /// --peers VQF's attitude on /vqf/tf and /vqf/estimate. Default: no
+    /// recording.
     #[arg(long, value_name = "OUT.mcap", requires = "input", conflicts_with_all = ["seeds", "ablate"])]
     pub mcap: Option<PathBuf>,
     /// Real data: --reference, --realdata, --peers, --offset, --align-s (`gyrocomp::reference`).
@@ -276,7 +277,10 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
         // nothing to a simulate directory: refused, never ignored
         let given = [
             (a.thermal_error.is_some(), "--thermal-error (each seed's calibration; a directory has its own config.toml)"),
-            (a.real.peers, "--peers (VQF and Fusion with --seeds, VQF with --reference or --realdata)"),
+            (
+                a.real.peers && a.mcap.is_none(),
+                "--peers (VQF and Fusion with --seeds, VQF with --reference or --realdata, VQF in the --mcap recording)",
+            ),
             (a.scenario.is_some(), "--scenario (with --seeds; a directory's scenario is its scenario.toml)"),
             (a.hard, "--hard (with --seeds)"),
             (a.power_on_moving, "--power-on-moving (with --seeds)"),
