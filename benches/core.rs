@@ -150,7 +150,7 @@ fn bench(c: &mut Criterion) {
             |out: Vec<u8>| {
                 let mut w = gyrocomp::candump::LogWriter::new(out, "vcan0");
                 let mut pipe = Pipeline::new(&cfg);
-                let mut sink = replay::ReplaySink::<Vec<u8>, Vec<u8>> { log: Some(&mut w), csv: None, keep: None, err: None };
+                let mut sink = replay::ReplaySink::<Vec<u8>, Vec<u8>> { log: Some(&mut w), csv: None, keep: None, mcap: None, err: None };
                 let s = replay::run(&mut pipe, &log[..], &mut sink).unwrap();
                 assert_eq!(s.input.samples, n as u64);
                 w.finish().unwrap()

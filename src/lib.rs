@@ -15,6 +15,7 @@ pub mod estimator;
 pub mod evaluate;
 pub mod gap;
 pub mod import;
+pub mod mcapout;
 pub mod outfile;
 pub mod output;
 pub mod peers;

@@ -16,10 +16,10 @@ enum Cmd {
     /// Replay a candump -l log through the estimator; write output frames (and a CSV).
     ///
     /// Prints a summary (samples, drops by cause, time per mode) on stderr.
-    /// Needs --output, --csv or both. An output that is the input (the same
-    /// file after resolving links) is refused; outputs are written under a
-    /// temporary name and renamed only when the run succeeds.
-    #[command(group(clap::ArgGroup::new("outputs").required(true).multiple(true).args(["output", "csv"])))]
+    /// Needs at least one of --output, --csv and --mcap. An output that is the
+    /// input (the same file after resolving links) is refused; outputs are
+    /// written under a temporary name and renamed only when the run succeeds.
+    #[command(group(clap::ArgGroup::new("outputs").required(true).multiple(true).args(["output", "csv", "mcap"])))]
     Replay {
         /// Config file (TOML, see config/gyrocomp.toml). Default: the built-in defaults.
         #[arg(long, value_name = "FILE")]
@@ -29,15 +29,23 @@ enum Cmd {
         input: PathBuf,
         /// Write the output frames here as a candump log (on the config's [can] interface), each
         /// stamped with the time of the input frame that closed its sample.
-        /// At least one of --output and --csv is required.
+        /// At least one of --output, --csv and --mcap is required.
         #[arg(long, value_name = "OUT.log")]
         output: Option<PathBuf>,
         /// Write one CSV row per sample here: t (s from the first sample, by the
         /// sample counter), roll, pitch, yaw (deg), rate_x..z (deg/s), bias_x..z
         /// (deg/s), mode (0 fusion, 1 aided, 2 gyro only), temp (deg C).
-        /// At least one of --output and --csv is required.
+        /// At least one of --output, --csv and --mcap is required.
         #[arg(long, value_name = "EST.csv")]
         csv: Option<PathBuf>,
+        /// Write an MCAP recording here for Foxglove / PlotJuggler (docs/mcap.md):
+        /// the attitude as foxglove.FrameTransform on /tf (world ENU -> base_link
+        /// FLU), the estimate (rates, bias, temperature, mode, flags) on
+        /// /gyrocomp/estimate, the input frames on /can/rx; JSON messages, log
+        /// times from the frames' own timestamps. At least one of --output, --csv
+        /// and --mcap is required.
+        #[arg(long, value_name = "OUT.mcap")]
+        mcap: Option<PathBuf>,
     },
     /// Fit the thermal bias curve from thermal-chamber runs (candump logs of a static sensor).
     ///
@@ -127,7 +135,7 @@ fn load_config(p: &Option<PathBuf>) -> Result<Config, String> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.cmd {
-        Cmd::Replay { config, input, output, csv } => cmd_replay(config, input, output, csv),
+        Cmd::Replay { config, input, output, csv, mcap } => cmd_replay(config, input, output, csv, mcap),
         Cmd::Run { config } => {
             init_logging();
             gyrocomp::daemon::run(&config).map_err(|e| format!("{e:#}"))
@@ -149,15 +157,21 @@ fn main() -> ExitCode {
     }
 }
 
-fn cmd_replay(config: Option<PathBuf>, input: PathBuf, output: Option<PathBuf>, csv: Option<PathBuf>) -> Result<(), String> {
-    if output.is_none() && csv.is_none() {
-        return Err("replay needs --output and/or --csv".into());
+fn cmd_replay(
+    config: Option<PathBuf>,
+    input: PathBuf,
+    output: Option<PathBuf>,
+    csv: Option<PathBuf>,
+    mcap: Option<PathBuf>,
+) -> Result<(), String> {
+    if output.is_none() && csv.is_none() && mcap.is_none() {
+        return Err("replay needs at least one of --output, --csv and --mcap".into());
     }
     // the config is an input too (replay_files itself guards --input)
-    let outs: Vec<&std::path::Path> = output.iter().chain(&csv).map(PathBuf::as_path).collect();
+    let outs: Vec<&std::path::Path> = output.iter().chain(&csv).chain(&mcap).map(PathBuf::as_path).collect();
     gyrocomp::outfile::refuse_inputs_as_outputs(&config.iter().map(PathBuf::as_path).collect::<Vec<_>>(), &outs)?;
     let cfg = load_config(&config)?;
-    let files = ReplayFiles { input: &input, output: output.as_deref(), csv: csv.as_deref() };
+    let files = ReplayFiles { input: &input, output: output.as_deref(), csv: csv.as_deref(), mcap: mcap.as_deref() };
     let sum = replay_files(&cfg, &files, None).map_err(|e| e.to_string())?;
     eprint!("replay {}:\n{}", input.display(), sum.render());
     if sum.input.samples == 0 {

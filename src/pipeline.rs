@@ -24,6 +24,14 @@ pub trait Sink {
     fn output(&mut self, est: &Estimate, frames: &[OutFrame; 4]);
     /// A frame or sample was dropped (already counted in the pipeline).
     fn dropped(&mut self, _t_us: u64, _cause: Drop) {}
+    /// Whether [`Sink::input`] is to be called (`replay --mcap`); asked once,
+    /// before the run. False: the input frames are not handed over at all.
+    fn wants_input(&self) -> bool {
+        false
+    }
+    /// An input frame, handed over just before it is pushed into the
+    /// pipeline (so before the outputs of the sample it closes).
+    fn input(&mut self, _t_us: u64, _frame: &RawFrame<'_>) {}
 }
 
 /// A sink that keeps nothing (benchmarks, warm-ups).

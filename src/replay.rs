@@ -10,6 +10,7 @@ use crate::adis::{Drop, InputCounters, RawFrame};
 use crate::candump::{parse_line, LineError, LineReader, LogWriter};
 use crate::config::Config;
 use crate::estimator::Estimate;
+use crate::mcapout::{McapError, McapFile, McapSink};
 use crate::outfile::OutFile;
 use crate::output::OutFrame;
 use crate::pipeline::{Pipeline, Sink};
@@ -94,6 +95,8 @@ pub struct ReplaySink<'a, W: Write, C: Write> {
     pub csv: Option<&'a mut C>,
     /// Every estimate, when the caller wants them in memory (evaluation).
     pub keep: Option<&'a mut Vec<Estimate>>,
+    /// `--mcap`: the estimates and the input frames (its errors come back from its `finish`).
+    pub mcap: Option<&'a mut McapSink>,
     pub err: Option<io::Error>,
 }
 
@@ -119,6 +122,17 @@ impl<W: Write, C: Write> Sink for ReplaySink<'_, W, C> {
         if let Some(k) = self.keep.as_deref_mut() {
             k.push(*est);
         }
+        if let Some(m) = self.mcap.as_deref_mut() {
+            m.output(est);
+        }
+    }
+    fn wants_input(&self) -> bool {
+        self.mcap.is_some()
+    }
+    fn input(&mut self, t_us: u64, frame: &RawFrame<'_>) {
+        if let Some(m) = self.mcap.as_deref_mut() {
+            m.input(t_us, frame);
+        }
     }
 }
 
@@ -136,6 +150,7 @@ pub fn write_csv_row<C: Write>(c: &mut C, e: &Estimate) -> io::Result<()> {
 pub fn run<R: Read, S: Sink>(pipe: &mut Pipeline, input: R, sink: &mut S) -> io::Result<Summary> {
     let mut rd = LineReader::new(input);
     let mut sum = Summary::default();
+    let want_input = sink.wants_input();
     while let Some(line) = rd.next_line()? {
         sum.lines += 1;
         let parsed = match line {
@@ -148,7 +163,13 @@ pub fn run<R: Read, S: Sink>(pipe: &mut Pipeline, input: R, sink: &mut S) -> io:
         };
         match parsed {
             Ok(f) if f.error => sum.error_frames += 1,
-            Ok(f) => pipe.push(f.t_us, RawFrame { id: f.id, extended: f.extended, remote: f.remote, fd: f.fd, data: f.payload() }, sink),
+            Ok(f) => {
+                let raw = RawFrame { id: f.id, extended: f.extended, remote: f.remote, fd: f.fd, data: f.payload() };
+                if want_input {
+                    sink.input(f.t_us, &raw);
+                }
+                pipe.push(f.t_us, raw, sink)
+            }
             Err(e) => sum.bad_line(rd.line_no, e),
         }
     }
@@ -203,6 +224,16 @@ fn parse_into<R: Read>(input: R, tx: std::sync::mpsc::SyncSender<Vec<Item>>, bac
 enum Out {
     Output(Estimate, [OutFrame; 4]),
     Dropped(u64, crate::adis::Drop),
+    /// An input frame (only when the sink wants them): at most 8 payload bytes.
+    Input {
+        t_us: u64,
+        id: u32,
+        extended: bool,
+        remote: bool,
+        fd: bool,
+        len: u8,
+        data: [u8; 8],
+    },
 }
 
 /// Collects the pipeline's output into batches for the sink thread.
@@ -246,6 +277,7 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
     let (back_tx, back_rx) = sync_channel::<Vec<Item>>(8);
     let (otx, orx) = sync_channel::<Vec<Out>>(4);
     let (oback_tx, oback_rx) = sync_channel::<Vec<Out>>(8);
+    let want_input = sink.wants_input();
     std::thread::scope(|sc| {
         let writer = sc.spawn(move || {
             for mut batch in orx {
@@ -253,6 +285,9 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
                     match o {
                         Out::Output(e, f) => sink.output(&e, &f),
                         Out::Dropped(t, d) => sink.dropped(t, d),
+                        Out::Input { t_us, id, extended, remote, fd, len, data } => {
+                            sink.input(t_us, &RawFrame { id, extended, remote, fd, data: &data[..len as usize] })
+                        }
                     }
                 }
                 let _ = oback_tx.try_send(batch);
@@ -269,6 +304,9 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
                             // Only classic payloads (<= 8 bytes) matter: FD frames are
                             // dropped as unknown by the assembler whatever they carry.
                             let n = (len as usize).min(8);
+                            if want_input {
+                                out.push(Out::Input { t_us, id, extended, remote, fd, len: n as u8, data });
+                            }
                             pipe.push(t_us, RawFrame { id, extended, remote, fd, data: &data[..n] }, &mut out)
                         }
                         Item::ErrorFrame => sum.error_frames += 1,
@@ -348,6 +386,8 @@ pub enum ReplayError {
     Output { path: String, source: io::Error },
     #[error("reading {path}: {source}")]
     Read { path: String, source: io::Error },
+    #[error("cannot write {path}: {source}")]
+    Mcap { path: String, source: McapError },
     #[error("{0}")]
     Refused(String),
 }
@@ -357,6 +397,8 @@ pub struct ReplayFiles<'a> {
     pub input: &'a Path,
     pub output: Option<&'a Path>,
     pub csv: Option<&'a Path>,
+    /// `--mcap`: a Foxglove recording (`crate::mcapout`).
+    pub mcap: Option<&'a Path>,
 }
 
 /// Replay a log file to an output log and/or CSV. `keep` collects estimates.
@@ -364,7 +406,7 @@ pub struct ReplayFiles<'a> {
 /// succeeds (`crate::outfile`); an output that is the input is refused.
 pub fn replay_files(cfg: &Config, files: &ReplayFiles<'_>, keep: Option<&mut Vec<Estimate>>) -> Result<Summary, ReplayError> {
     let ip = files.input.display().to_string();
-    let outs: Vec<&Path> = files.output.iter().chain(files.csv.iter()).copied().collect();
+    let outs: Vec<&Path> = files.output.iter().chain(files.csv.iter()).chain(files.mcap.iter()).copied().collect();
     crate::outfile::refuse_inputs_as_outputs(&[files.input], &outs).map_err(ReplayError::Refused)?;
     let input = File::open(files.input).map_err(|source| ReplayError::Input { path: ip.clone(), source })?;
     let out_err = |p: &Path| {
@@ -384,22 +426,39 @@ pub fn replay_files(cfg: &Config, files: &ReplayFiles<'_>, keep: Option<&mut Vec
         }
         None => None,
     };
+    let mcap_err = |p: &Path| {
+        let path = p.display().to_string();
+        move |source| ReplayError::Mcap { path, source }
+    };
+    let mut mcap = match files.mcap {
+        Some(p) => Some(McapSink::new(McapFile::create(p, false, false).map_err(mcap_err(p))?)),
+        None => None,
+    };
     let speed = crate::speed::load(cfg).map_err(|e| ReplayError::Refused(format!("config: {e}")))?;
     let mut pipe = Pipeline::with_speed(cfg, speed);
-    let mut sink = ReplaySink { log: log.as_mut(), csv: csv.as_mut(), keep, err: None };
+    let mut sink = ReplaySink { log: log.as_mut(), csv: csv.as_mut(), keep, mcap: mcap.as_mut(), err: None };
     let sum = run_threaded(&mut pipe, input, &mut sink).map_err(|source| ReplayError::Read { path: ip, source })?;
     if let Some(e) = sink.err.take() {
         return Err(ReplayError::Output { path: out_name(files), source: e });
     }
+    drop(sink);
     if sum.input.samples == 0 {
         // Nothing to write: leave no output that looks like a result.
         return Ok(sum);
     }
+    // the MCAP's errors before any output is committed
+    let mcap = match (mcap, files.mcap) {
+        (Some(m), Some(p)) => Some((m.finish().map_err(mcap_err(p))?, p)),
+        _ => None,
+    };
     if let (Some(l), Some(p)) = (log, files.output) {
         l.finish().and_then(OutFile::commit).map_err(out_err(p))?;
     }
     if let (Some(c), Some(p)) = (csv, files.csv) {
         c.commit().map_err(out_err(p))?;
+    }
+    if let Some((m, p)) = mcap {
+        m.commit().map_err(mcap_err(p))?;
     }
     Ok(sum)
 }

@@ -82,7 +82,7 @@ fn every_option_of_every_subcommand_explains_itself() {
 fn required_options_are_required_and_marked() {
     // (subcommand, what the usage line must show outside [...], the option's flag)
     let cases = [
-        ("replay", "--input <IN.log> <--output <OUT.log>|--csv <EST.csv>>", "--input"),
+        ("replay", "--input <IN.log> <--output <OUT.log>|--csv <EST.csv>|--mcap <OUT.mcap>>", "--input"),
         ("run", "--config <FILE>", "--config"),
         ("check-config", "<FILE>", "<FILE>"),
         ("calibrate", "--input <RUN.log>...", "--input"),
@@ -103,7 +103,7 @@ fn required_options_are_required_and_marked() {
     // replay with an input but neither output
     let o = gyrocomp(&["replay", "--input", "x.log"]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(text(&o.stderr).contains("--output <OUT.log>|--csv <EST.csv>"), "{}", text(&o.stderr));
+    assert!(text(&o.stderr).contains("--output <OUT.log>|--csv <EST.csv>|--mcap <OUT.mcap>"), "{}", text(&o.stderr));
 }
 
 #[test]

@@ -112,7 +112,7 @@ fn the_printed_vqf_row_is_vqf_on_the_samples_ours_decoded() {
     let mut so = SimOptions::new("static", 3);
     so.duration = Some(60.0);
     let base = Config::default();
-    let o = EvalOptions { score_from: 10.0, ablation: false, out: None, peers: true };
+    let o = EvalOptions { score_from: 10.0, ablation: false, out: None, peers: true, mcap: None };
     let text = evaluate_seeds(&base, &so, 3..=3, &o).unwrap();
     let data = RunData::simulate(&so).unwrap();
     let samples = data.samples(&base).unwrap();

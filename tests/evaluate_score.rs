@@ -84,7 +84,9 @@ fn ablation_prints_the_three_paper_cases_and_writes_the_report() {
     simulate(&o, &dir).unwrap();
     let cfg = Config::load(&dir.join("config.toml")).unwrap();
     let rep = t.path().join("rep");
-    let text = evaluate_dir(&cfg, &dir, &EvalOptions { score_from: 10.0, ablation: true, out: Some(rep.clone()), peers: false }).unwrap();
+    let text =
+        evaluate_dir(&cfg, &dir, &EvalOptions { score_from: 10.0, ablation: true, out: Some(rep.clone()), peers: false, mcap: None })
+            .unwrap();
     for case in ["1 startup_average", "2 startup_thermal", "3 paper"] {
         assert!(text.contains(case), "{text}");
     }

@@ -16,7 +16,8 @@ fn replay(dir: &std::path::Path, edit: impl FnOnce(&mut Config)) -> (Vec<Estimat
     let mut cfg = Config::load(&dir.join("config.toml")).unwrap();
     edit(&mut cfg);
     let mut est = Vec::new();
-    let sum = replay_files(&cfg, &ReplayFiles { input: &dir.join("imu.log"), output: None, csv: None }, Some(&mut est)).unwrap();
+    let sum =
+        replay_files(&cfg, &ReplayFiles { input: &dir.join("imu.log"), output: None, csv: None, mcap: None }, Some(&mut est)).unwrap();
     (est, sum)
 }
 

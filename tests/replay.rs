@@ -226,7 +226,7 @@ fn threaded_replay_writes_the_same_bytes_as_single_threaded() {
         let mut w = LogWriter::new(Vec::new(), "can0");
         let mut csv = Vec::new();
         let mut pipe = Pipeline::new(&cfg);
-        let mut sink = ReplaySink::<Vec<u8>, Vec<u8>> { log: Some(&mut w), csv: Some(&mut csv), keep: None, err: None };
+        let mut sink = ReplaySink::<Vec<u8>, Vec<u8>> { log: Some(&mut w), csv: Some(&mut csv), keep: None, mcap: None, err: None };
         let s = if threaded { run_threaded(&mut pipe, &input[..], &mut sink) } else { run(&mut pipe, &input[..], &mut sink) }.unwrap();
         (w.finish().unwrap(), csv, s.render())
     };

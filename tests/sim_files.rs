@@ -45,7 +45,7 @@ fn quantised_log_replays_and_decodes_to_the_measurement() {
     let files = simulate(&o, &d).unwrap();
     let cfg = Config::load(&d.join("config.toml")).unwrap();
     let mut est: Vec<Estimate> = Vec::new();
-    let sum = replay_files(&cfg, &ReplayFiles { input: &d.join("imu.log"), output: None, csv: None }, Some(&mut est)).unwrap();
+    let sum = replay_files(&cfg, &ReplayFiles { input: &d.join("imu.log"), output: None, csv: None, mcap: None }, Some(&mut est)).unwrap();
     assert_eq!(sum.bad_lines, 0);
     assert_eq!(sum.input.dropped(), 0);
     assert_eq!(sum.input.samples, files.samples);

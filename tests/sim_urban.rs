@@ -326,7 +326,7 @@ fn imu_only_replay_ignores_the_wheel_frames() {
     let cfg = Config::load(&d.join("config.toml")).unwrap();
     let run = |p: &std::path::Path| {
         let mut est: Vec<Estimate> = Vec::new();
-        let sum = replay_files(&cfg, &ReplayFiles { input: p, output: None, csv: None }, Some(&mut est)).unwrap();
+        let sum = replay_files(&cfg, &ReplayFiles { input: p, output: None, csv: None, mcap: None }, Some(&mut est)).unwrap();
         (est, sum)
     };
     let (a, sa) = run(&d.join("imu.log"));
@@ -372,7 +372,7 @@ fn replay_summary_names_the_power_on_speed_kept() {
         let d = t.path().join(format!("run{moving}"));
         simulate(&o, &d).unwrap();
         let cfg = Config::load(&d.join("config.toml")).unwrap();
-        let sum = replay_files(&cfg, &ReplayFiles { input: &d.join("imu.log"), output: None, csv: None }, None).unwrap();
+        let sum = replay_files(&cfg, &ReplayFiles { input: &d.join("imu.log"), output: None, csv: None, mcap: None }, None).unwrap();
         let text = sum.render();
         assert!(text.contains(expect) && text.contains(why), "moving {moving}:\n{text}");
     }

@@ -145,8 +145,8 @@ impl RunData {
         let mut est = Vec::with_capacity(self.truth.len());
         match &self.source {
             Source::Log(p) => {
-                let sum =
-                    replay_files(cfg, &ReplayFiles { input: p, output: None, csv: None }, Some(&mut est)).map_err(|e| e.to_string())?;
+                let sum = replay_files(cfg, &ReplayFiles { input: p, output: None, csv: None, mcap: None }, Some(&mut est))
+                    .map_err(|e| e.to_string())?;
                 if est.len() != self.truth.len() && sum.bad_lines > 0 {
                     // a damaged log: name it and its bad lines
                     let first: Vec<String> = sum.bad_examples.iter().take(3).map(|(n, e)| format!("line {n}: {e}")).collect();

@@ -5,6 +5,7 @@
 use super::{cases, errors, oracle, plot, run_row, run_table, score, write_reports, EvalOptions, Metrics, RunData, Window, MOVING_MPS};
 use crate::config::Config;
 use crate::estimator::Estimate;
+use crate::mcapout::{McapError, McapFile};
 use crate::sim::ScenarioInfo;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -48,6 +49,16 @@ pub fn evaluate_dir_with(cfg: &Config, dir: &Path, o: &EvalOptions, config_path:
     if o.score_from >= win.end {
         return Err(format!("--score-from {} s is at or after the end of the run ({:.1} s): nothing to score", o.score_from, win.end));
     }
+    // --mcap: refused (an input, a directory, no such directory) before the work
+    let mut mcap = match &o.mcap {
+        Some(p) => {
+            let inputs: Vec<PathBuf> = RUN_FILES.iter().map(|f| dir.join(f)).chain(config_path.map(Path::to_path_buf)).collect();
+            let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+            crate::outfile::refuse_inputs_as_outputs(&inputs, &[p.as_path()])?;
+            Some((McapFile::create(p, true, o.peers).map_err(|e| format!("cannot write {}: {e}", p.display()))?, p))
+        }
+        None => None,
+    };
     let mut out = String::new();
     let mut metrics = Vec::new();
     let mut man = Vec::new();
@@ -89,6 +100,20 @@ pub fn evaluate_dir_with(cfg: &Config, dir: &Path, o: &EvalOptions, config_path:
         out += &run_row(&t, &orc, true);
         out += "(oracle floor: the measured gyro with the deterministic error known exactly, integrated from the true attitude at the window's start)\n";
     }
+    if let Some((f, p)) = mcap.take() {
+        let vqf = if o.peers {
+            let samples = data.samples(cfg)?;
+            if samples.len() != est.len() {
+                return Err(format!("{} samples decoded for {} estimates: VQF cannot be recorded beside them", samples.len(), est.len()));
+            }
+            let magn = crate::reference::magnetometer_configured(cfg);
+            Some(crate::peers::run_vqf(&samples, 1.0 / cfg.profile().rate_hz, magn))
+        } else {
+            None
+        };
+        write_mcap(f, &dir.join("imu.log"), &data, &est, vqf.as_deref()).map_err(|e| format!("cannot write {}: {e}", p.display()))?;
+        out += &format!("wrote {}\n", p.display());
+    }
     if let Some(rd) = &o.out {
         let rep = Report {
             input: dir.display().to_string(),
@@ -113,4 +138,31 @@ pub fn evaluate_dir_with(cfg: &Config, dir: &Path, o: &EvalOptions, config_path:
         out += &format!("wrote {}/report.json, attitude_error.svg, bias.svg\n", rd.display());
     }
     Ok(out)
+}
+
+/// `evaluate --input DIR --mcap`: the input frames of `log`, the default
+/// case's estimates and the simulated truth beside them (sample `i` of
+/// each, stamped with the estimate's frame time), with `vqf` VQF's attitude
+/// per sample too, then renamed into place.
+pub fn write_mcap(mut f: McapFile, log: &Path, data: &RunData, est: &[Estimate], vqf: Option<&[[f64; 3]]>) -> Result<(), McapError> {
+    let input = std::fs::File::open(log)?;
+    let mut rd = crate::candump::LineReader::new(input);
+    while let Some(line) = rd.next_line()? {
+        if let Ok(l) = line {
+            if let Ok(fr) = crate::candump::parse_line(l) {
+                if !fr.error {
+                    let raw = crate::adis::RawFrame { id: fr.id, extended: fr.extended, remote: fr.remote, fd: fr.fd, data: fr.payload() };
+                    f.can(fr.t_us, &raw)?;
+                }
+            }
+        }
+    }
+    for (i, ((e, t), b)) in est.iter().zip(&data.truth).zip(&data.bias).enumerate() {
+        f.estimate(e)?;
+        f.truth(e.t_us, t.t, t.att, *b)?;
+        if let Some(v) = vqf {
+            f.vqf(e.t_us, e.t, v[i])?;
+        }
+    }
+    f.commit()
 }

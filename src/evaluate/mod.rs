@@ -79,6 +79,9 @@ pub struct EvalOptions {
     pub out: Option<PathBuf>,
     /// With many seeds: VQF and Fusion beside ours ([`seeds::run_peers`]).
     pub peers: bool,
+    /// With --input DIR: the recording of the default case with the truth
+    /// beside it ([`dir::write_mcap`]).
+    pub mcap: Option<PathBuf>,
 }
 
 /// Write the report files: every destination checked first (not an input,
@@ -213,6 +216,13 @@ pub struct EvaluateArgs {
     /// and what each does: docs/estimator.md). Default: every rule.
     #[arg(long, value_name = "LIST", requires = "ablate")]
     pub rules: Option<String>,
+    /// With --input DIR (a simulate directory): write an MCAP recording here
+    /// (docs/mcap.md): replay's channels for the default case, and the
+    /// simulated truth beside them on /truth/tf and /truth/estimate; with
+    /// --peers VQF's attitude on /vqf/tf and /vqf/estimate. Default: no
+    /// recording.
+    #[arg(long, value_name = "OUT.mcap", requires = "input", conflicts_with_all = ["seeds", "ablate"])]
+    pub mcap: Option<PathBuf>,
     /// Real data: --reference, --realdata, --peers, --offset, --align-s (`gyrocomp::reference`).
     #[command(flatten)]
     pub real: crate::reference::ReferenceArgs,
@@ -250,6 +260,9 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
     if a.ablate {
         return run_ablate(a);
     }
+    if a.mcap.is_some() && (a.real.reference.is_some() || a.real.realdata.is_some()) {
+        return Err("--mcap writes the recording of a simulate directory (--input DIR); not yet with --reference or --realdata".into());
+    }
     if let Some((text, failed)) =
         crate::reference::dispatch(a.config.as_deref(), a.input.as_deref(), a.out.as_deref(), a.score_from, &a.real)?
     {
@@ -264,7 +277,10 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
         // nothing to a simulate directory: refused, never ignored
         let given = [
             (a.thermal_error.is_some(), "--thermal-error (each seed's calibration; a directory has its own config.toml)"),
-            (a.real.peers, "--peers (VQF and Fusion with --seeds, VQF with --reference or --realdata)"),
+            (
+                a.real.peers && a.mcap.is_none(),
+                "--peers (VQF and Fusion with --seeds, VQF with --reference or --realdata, VQF in the --mcap recording)",
+            ),
             (a.scenario.is_some(), "--scenario (with --seeds; a directory's scenario is its scenario.toml)"),
             (a.hard, "--hard (with --seeds)"),
             (a.power_on_moving, "--power-on-moving (with --seeds)"),
@@ -297,7 +313,7 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
         );
         eprint!("{note}");
     }
-    let o = EvalOptions { score_from: a.score_from, ablation: a.ablation, out: a.out.clone(), peers: a.real.peers };
+    let o = EvalOptions { score_from: a.score_from, ablation: a.ablation, out: a.out.clone(), peers: a.real.peers, mcap: a.mcap.clone() };
     let text = match (&a.input, &a.seeds) {
         (Some(dir), None) => evaluate_dir_with(&cfg, dir, &o, a.config.as_deref())?,
         (None, Some(s)) => {
