@@ -434,6 +434,14 @@ pub struct MekfConfig {
     pub scale_walk: f64,
     /// Innovation gate: a measurement with NIS > gate_sigma^2 is refused.
     pub gate_sigma: f64,
+    /// A quiet period is a stop only when zero lies within this many sigmas
+    /// of the velocity the filter believes (the velocity's NIS against zero
+    /// below `stop_sigma`^2); beyond, it is a smooth cruise. A decision
+    /// between two hypotheses, not an outlier gate: a stop taken for a
+    /// cruise still reads the bias and the tilt and misses only the
+    /// zero-velocity update, while a cruise taken for a stop zeroes a
+    /// velocity the later stops are judged by.
+    pub stop_sigma: f64,
     /// Seconds of refused standstill evidence after which the filter
     /// re-levels on it (flagged).
     pub relevel_s: f64,
@@ -482,6 +490,7 @@ impl Default for MekfConfig {
             speed_sigma: 0.1,
             scale_walk: 1e-4,
             gate_sigma: 4.0,
+            stop_sigma: 2.0,
             relevel_s: 1.5,
             init_speed_sigma: 15.0,
             mag_norm_tol: 0.1,

@@ -283,6 +283,7 @@ pub fn mekf_params(cfg: &Config) -> MekfParams {
         yaw_var: (k.yaw_sigma_deg * D2R).powi(2),
         speed_var: m.speed_sigma * m.speed_sigma,
         gate: m.gate_sigma * m.gate_sigma,
+        stop_nis: m.stop_sigma * m.stop_sigma,
         relevel_s: m.relevel_s,
         lever: cfg.mounting.lever_arm,
         mag,

@@ -34,6 +34,7 @@ pub(super) fn mekf(m: &MekfConfig) -> Check {
     within("mekf.speed_sigma", m.speed_sigma, 1e-4, 30.0, "m/s")?;
     within("mekf.scale_walk", m.scale_walk, 0.0, 0.1, "1/sqrt(s)")?;
     within("mekf.gate_sigma", m.gate_sigma, 0.5, 100.0, "sigma")?;
+    within("mekf.stop_sigma", m.stop_sigma, 0.5, 100.0, "sigma")?;
     within("mekf.relevel_s", m.relevel_s, 0.01, 3600.0, "s")?;
     within("mekf.init_speed_sigma", m.init_speed_sigma, 1e-3, 150.0, "m/s")?;
     // 100 and 180 open the gate (an experiment: every field is taken as Earth's)

@@ -95,6 +95,8 @@ fn a_sample_of_the_physical_ranges() {
         ("[thermal]\nlearn_max_dev = [0.01, 0.01, 2.0]", "thermal.learn_max_dev[2]"),
         ("[mekf]\ngate_sigma = 0.4", "mekf.gate_sigma"),
         ("[mekf]\ngate_sigma = 101.0", "mekf.gate_sigma"),
+        ("[mekf]\nstop_sigma = 0.4", "mekf.stop_sigma"),
+        ("[mekf]\nstop_sigma = 101.0", "mekf.stop_sigma"),
         ("[mekf]\nupdate_hz = 0.5", "mekf.update_hz"),
         ("[mekf]\ntilt_motion_share = 1.5", "mekf.tilt_motion_share"),
         ("[mekf]\nrelevel_s = 1e5", "mekf.relevel_s"),

@@ -79,6 +79,9 @@ pub struct MekfParams {
     pub zru_floor: f64,
     pub yaw_var: f64,
     pub speed_var: f64,
+    /// The velocity's NIS against zero beyond which a quiet period is a
+    /// cruise, not a stop (stop_sigma^2).
+    pub stop_nis: f64,
     /// NIS gate (gate_sigma^2).
     pub gate: f64,
     pub relevel_s: f64,

@@ -45,7 +45,7 @@ const RULES: [(Rule, &str, &str, &str); 27] = [
     (
         Rule::Cruise,
         "cruise",
-        "a quiet period whose zero velocity the velocity state refuses (NIS beyond the gate) is a smooth cruise, not a stop",
+        "a quiet period whose zero velocity the velocity state refuses (NIS against zero beyond stop_sigma^2) is a smooth cruise, not a stop",
         "mekf/tick.rs, velocity_belief.rs",
     ),
     (

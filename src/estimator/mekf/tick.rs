@@ -90,7 +90,7 @@ impl Mekf {
         // A stop is a physical event: a car the filter knows to be moving
         // cannot stand without a deceleration the accelerometer measured. A
         // still period whose zero velocity the velocity state refuses (its
-        // NIS against zero beyond the gate) is a smooth cruise: the gyro
+        // NIS against zero beyond `stop_sigma`²) is a smooth cruise: the gyro
         // still reads the bias on a straight and gravity is still gravity,
         // but the velocity is not zero. A velocity that has become unknown
         // (a gap widens it; an accelerometer bias turned with the car since
@@ -108,7 +108,7 @@ impl Mekf {
         }
         let after_gap = self.after_gap && self.on(Rule::GapVelocityUnknown);
         let cruising =
-            self.on(Rule::Cruise) && self.vehicle && !wheel_standing && still && !after_gap && self.zero_velocity_nis() > self.p.gate;
+            self.on(Rule::Cruise) && self.vehicle && !wheel_standing && still && !after_gap && self.zero_velocity_nis() > self.p.stop_nis;
         if cruising {
             self.counters.rules.note(Rule::Cruise);
         }
@@ -450,8 +450,12 @@ impl Mekf {
             // smooth 0.03 g pull-away the rest detector takes for still put
             // half a degree into the pitch and left the speed a third short,
             // and the car, still crawling, later passed for stopped
-            // (`crawl` seed 3: 150 s still while moving; with it, 56 s).
-            let all = Gain { velocity: !at_rest, ..all };
+            // (`crawl` seed 3). Only once a standstill has read the bias:
+            // before, the tilt's error is mostly the bias's, which the
+            // covariance of a filter that far off does not describe (a
+            // copy of the power-on bank then believed a speed that refused
+            // the first stop).
+            let all = Gain { velocity: !at_rest && self.bias_known, ..all };
             let mut h = [0.0; N];
             h[TH + 1] = 1.0;
             let up = self.update(&h, nu[0], r_tilt, all, gate);

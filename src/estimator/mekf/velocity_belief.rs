@@ -8,7 +8,7 @@ use super::*;
 
 impl Mekf {
     /// The velocity's NIS against standing, `vᵀ (P_vv + (σ_zupt² + age) I)⁻¹ v`:
-    /// beyond the gate, the velocity state refuses a standstill. A
+    /// beyond `stop_sigma`², the velocity state refuses a standstill. A
     /// covariance that is not positive definite says the velocity is not
     /// known: 0 (nothing refuses the stop).
     pub(super) fn zero_velocity_nis(&self) -> f64 {
@@ -148,7 +148,7 @@ mod tests {
     fn a_velocity_integrated_through_turns_no_longer_refuses_a_stop() {
         let mut m = car(2.0, 0.1);
         m.age_velocity(0.1, true);
-        assert!(m.zero_velocity_nis() > m.p.gate, "{}", m.zero_velocity_nis());
+        assert!(m.zero_velocity_nis() > m.p.stop_nis, "{}", m.zero_velocity_nis());
         // 300 s of driving straight: nothing exposed
         m.age_velocity(300.0, false);
         assert_eq!(m.velocity_age_var(), 0.0);
@@ -158,7 +158,7 @@ mod tests {
         m.age_velocity(60.0, false);
         let s = m.velocity_age_var().sqrt();
         assert!((s - m.p.accel_bias_g * G * 120.0).abs() < 1e-6, "{s}");
-        assert!(m.zero_velocity_nis() < m.p.gate, "{}", m.zero_velocity_nis());
+        assert!(m.zero_velocity_nis() < m.p.stop_nis, "{}", m.zero_velocity_nis());
     }
 
     /// A forward speed beyond the band is held to it, one-sided: 80 m/s
