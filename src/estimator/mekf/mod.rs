@@ -42,6 +42,7 @@
 mod forward_axis;
 mod gap;
 mod gravity_lp;
+mod gravity_turned;
 mod kalman;
 mod measure;
 mod motion_model;
@@ -49,6 +50,7 @@ mod params;
 mod rules;
 mod tick;
 mod velocity_belief;
+use gravity_turned::GravityWatch;
 
 use forward_axis::{PullAways, VehicleAxes};
 use gravity_lp::{GravityLp, LpGains};
@@ -128,6 +130,16 @@ const TURNING_AT_SPEED_G: f64 = 0.02;
 /// to a re-level. The simulated magnetometer (0.5 mgauss per sample) keeps
 /// a tick's mean field steady to 0.03 deg.
 const FIELD_TURN_DEG: f64 = 1.5;
+/// A car whose gravity turns in its own frame by more than this (deg)
+/// within `GRAVITY_TURN_WINDOW_S` of a quiet period is moving
+/// (`gravity_turned`): a standing car does not pitch or roll, a car
+/// rolling over a change of grade does, at its speed times the road's
+/// vertical curvature (0.05 deg/s and more at walking pace). A tick's mean
+/// specific force, low-passed over 1 s, holds its direction to about 0.1
+/// deg at a quiet rest; the rest detector's own drift bound (`drift_g`
+/// 0.01 g) is 0.57 deg.
+const GRAVITY_TURN_DEG: f64 = 0.5;
+const GRAVITY_TURN_WINDOW_S: f64 = 10.0;
 /// 1-sigma of the vertical-speed bound (`max_vertical_speed`), m/s.
 const VERTICAL_BOUND_SIGMA: f64 = 0.5;
 /// A car's body cannot keep rolling or pitching (`level_rate_update`): its
@@ -329,6 +341,9 @@ pub struct Mekf {
     /// The magnetic field (body frame, mean of a tick) when the rest
     /// detector's conditions began to hold (`field_turned`).
     quiet_field: Option<[f64; 3]>,
+    /// The gravity's turn in the body frame over a quiet period
+    /// (`gravity_turned`).
+    quiet_gravity: GravityWatch,
     nhc_refused: f64,
     /// Seconds the free unit's low-passed gravity has been refused without a break.
     gravity_refused: f64,
@@ -427,6 +442,7 @@ impl Mekf {
             refused_still: 0.0,
             wheel_standing_s: 0.0,
             quiet_field: None,
+            quiet_gravity: GravityWatch::default(),
             nhc_refused: 0.0,
             gravity_refused: 0.0,
             gravity_held: 0.0,

@@ -12,6 +12,7 @@ pub enum Rule {
     VelocityAge,
     TurningAtSpeed,
     FieldTurned,
+    GravityTurned,
     GapVelocityUnknown,
     WheelStanding,
     LevelRate,
@@ -41,7 +42,7 @@ pub enum Rule {
 /// where it acts. In the enum's order, which is the ablation table's:
 /// `Rule::describe` finds a rule's row by its discriminant, and `Rule::ALL`
 /// is this column (checked at compile time below).
-const RULES: [(Rule, &str, &str, &str); 27] = [
+const RULES: [(Rule, &str, &str, &str); 28] = [
     (
         Rule::Cruise,
         "cruise",
@@ -65,6 +66,12 @@ const RULES: [(Rule, &str, &str, &str); 27] = [
         "field_turned",
         "a still period during which the magnetic field turned in the car's frame is a turn",
         "mekf/tick.rs",
+    ),
+    (
+        Rule::GravityTurned,
+        "gravity_turned",
+        "a quiet period during which gravity turned in the car's frame (a pitch or roll rate a standing car has not) is motion",
+        "mekf/gravity_turned.rs",
     ),
     (
         Rule::GapVelocityUnknown,

@@ -79,14 +79,18 @@ impl Mekf {
         let f_mean = [a.accel[0] / n, a.accel[1] / n, a.accel[2] / n];
         let field_turned = self.field_turned(a) && self.on(Rule::FieldTurned);
         let turning = !field_turned && imu_still && wheel.is_none() && self.turning_at_speed(omega, &f_mean);
+        // and a car rolling over a change of grade pitches (`gravity_turned`)
+        let gravity_turned = self.gravity_turned(a) && self.on(Rule::GravityTurned);
         if imu_still && wheel.is_none() {
             if field_turned {
                 self.counters.rules.note(Rule::FieldTurned);
             } else if turning {
                 self.counters.rules.note(Rule::TurningAtSpeed);
+            } else if gravity_turned {
+                self.counters.rules.note(Rule::GravityTurned);
             }
         }
-        let still = imu_still && !a.suspect && (wheel.is_some() || !(field_turned || turning));
+        let still = imu_still && !a.suspect && (wheel.is_some() || !(field_turned || turning || gravity_turned));
         // A stop is a physical event: a car the filter knows to be moving
         // cannot stand without a deceleration the accelerometer measured. A
         // still period whose zero velocity the velocity state refuses (its
