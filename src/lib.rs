@@ -7,6 +7,7 @@
 
 pub mod adis;
 pub mod align;
+pub mod batches;
 pub mod calibrate;
 pub mod candump;
 pub mod config;

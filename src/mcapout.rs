@@ -21,6 +21,7 @@
 //! naming the topic and the time.
 
 use crate::adis::RawFrame;
+use crate::batches::Batches;
 use crate::estimator::Estimate;
 use crate::outfile::OutFile;
 use mcap::records::MessageHeader;
@@ -180,6 +181,27 @@ struct EstimateMsg<'a> {
     accel_ratio: f32,
     flags: u16,
     flag: FlagBits<'a>,
+}
+
+impl EstimateMsg<'_> {
+    /// The message of one estimate.
+    fn of(e: &Estimate) -> EstimateMsg<'_> {
+        EstimateMsg {
+            timestamp: Time::from_us(e.t_us),
+            t: e.t,
+            cnt: e.cnt,
+            roll: e.roll as f32,
+            pitch: e.pitch as f32,
+            yaw: e.yaw as f32,
+            rate: e.rate.into(),
+            bias: e.bias.into(),
+            temp: e.temp as f32,
+            mode: e.mode,
+            accel_ratio: e.ratio as f32,
+            flags: e.flags,
+            flag: FlagBits(&e.flags),
+        }
+    }
 }
 
 struct FlagBits<'a>(&'a u16);
@@ -392,22 +414,7 @@ impl McapFile {
         Self::finite(topic, "rate", e.t_us, &e.rate)?;
         Self::finite(topic, "bias", e.t_us, &e.bias)?;
         self.tf(Topic::Tf, VEHICLE_FRAME, e.t_us, [e.roll, e.pitch, e.yaw])?;
-        let msg = EstimateMsg {
-            timestamp: Time::from_us(e.t_us),
-            t: e.t,
-            cnt: e.cnt,
-            roll: e.roll as f32,
-            pitch: e.pitch as f32,
-            yaw: e.yaw as f32,
-            rate: e.rate.into(),
-            bias: e.bias.into(),
-            temp: e.temp as f32,
-            mode: e.mode,
-            accel_ratio: e.ratio as f32,
-            flags: e.flags,
-            flag: FlagBits(&e.flags),
-        };
-        self.write(topic, e.t_us, &msg)
+        self.write(topic, e.t_us, &EstimateMsg::of(e))
     }
 
     /// One input frame on `/can/rx`.
@@ -476,17 +483,13 @@ enum Rec {
     Can { t_us: u64, id: u32, extended: bool, remote: bool, fd: bool, len: u8, data: [u8; 8] },
 }
 
-const BATCH: usize = 4096;
-
 /// The [`crate::pipeline::Sink`] part of `replay --mcap`: estimates and input
 /// frames are batched to a thread of their own, which encodes and writes
 /// them in the order received (the JSON and the compression are most of the
 /// MCAP's cost, and would otherwise hold up the sink's other outputs). The
 /// first error stops the thread and comes back from [`McapSink::finish`].
 pub struct McapSink {
-    cur: Vec<Rec>,
-    tx: Option<std::sync::mpsc::SyncSender<Vec<Rec>>>,
-    back: std::sync::mpsc::Receiver<Vec<Rec>>,
+    batches: Batches<Rec>,
     handle: Option<std::thread::JoinHandle<Result<McapFile, McapError>>>,
 }
 
@@ -511,25 +514,13 @@ impl McapSink {
                 Ok(file)
             })
             .expect("spawning the mcap thread");
-        McapSink { cur: Vec::with_capacity(BATCH), tx: Some(tx), back, handle: Some(handle) }
+        McapSink { batches: Batches::new(tx, back), handle: Some(handle) }
     }
 
+    /// A record for the thread; a send fails only when the thread stopped
+    /// on an error, which `finish` says.
     fn push(&mut self, r: Rec) {
-        self.cur.push(r);
-        if self.cur.len() == BATCH {
-            self.flush();
-        }
-    }
-
-    fn flush(&mut self) {
-        if self.cur.is_empty() {
-            return;
-        }
-        let next = self.back.try_recv().unwrap_or_else(|_| Vec::with_capacity(BATCH));
-        if let Some(tx) = &self.tx {
-            // a send fails only when the thread stopped on an error: finish says it
-            let _ = tx.send(std::mem::replace(&mut self.cur, next));
-        }
+        self.batches.push(r);
     }
 
     pub fn output(&mut self, e: &Estimate) {
@@ -545,8 +536,8 @@ impl McapSink {
 
     /// Everything written: the file, ready for [`McapFile::commit`], or the first error.
     pub fn finish(mut self) -> Result<McapFile, McapError> {
-        self.flush();
-        self.tx = None;
+        self.batches.flush();
+        self.batches.close();
         match self.handle.take().map(|h| h.join()) {
             Some(Ok(r)) => r,
             Some(Err(_)) => Err(McapError::Io(io::Error::other("the mcap thread panicked"))),
@@ -559,7 +550,7 @@ impl Drop for McapSink {
     /// Not finished (the replay failed): stop the thread; its file is dropped
     /// and so its temporary file removed.
     fn drop(&mut self) {
-        self.tx = None;
+        self.batches.close();
         if let Some(h) = self.handle.take() {
             let _ = h.join();
         }
@@ -617,21 +608,7 @@ mod tests {
     #[test]
     fn messages_encode_as_the_schemas_say() {
         let e = est();
-        let msg = EstimateMsg {
-            timestamp: Time::from_us(e.t_us),
-            t: e.t,
-            cnt: e.cnt,
-            roll: e.roll as f32,
-            pitch: e.pitch as f32,
-            yaw: e.yaw as f32,
-            rate: e.rate.into(),
-            bias: e.bias.into(),
-            temp: e.temp as f32,
-            mode: e.mode,
-            accel_ratio: e.ratio as f32,
-            flags: e.flags,
-            flag: FlagBits(&e.flags),
-        };
+        let msg = EstimateMsg::of(&e);
         let s = serde_json::to_string(&msg).unwrap();
         assert!(s.starts_with(r#"{"timestamp":{"sec":1700000000,"nsec":123456000},"t":1.5,"cnt":7,"roll":0.0,"#), "{s}");
         assert!(s.contains(r#""rate":{"x":0.5,"y":-0.25,"z":1.0},"bias":{"x":0.1,"y":0.2,"z":-0.3},"temp":25.5,"mode":1,"#), "{s}");

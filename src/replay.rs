@@ -7,6 +7,7 @@
 //! number, and the replay goes on. Same input + same config = same bytes out.
 
 use crate::adis::{Drop, InputCounters, RawFrame};
+use crate::batches::Batches;
 use crate::candump::{parse_line, LineError, LineReader, LogWriter};
 use crate::config::Config;
 use crate::estimator::Estimate;
@@ -185,12 +186,9 @@ enum Item {
     Bad { line_no: u64, err: LineError },
 }
 
-const BATCH: usize = 8192;
-
 /// Parse a stream into batches of items on the current thread.
-fn parse_into<R: Read>(input: R, tx: std::sync::mpsc::SyncSender<Vec<Item>>, back: std::sync::mpsc::Receiver<Vec<Item>>) -> io::Result<()> {
+fn parse_into<R: Read>(input: R, mut batches: Batches<Item>) -> io::Result<()> {
     let mut rd = LineReader::new(input);
-    let mut batch = Vec::with_capacity(BATCH);
     while let Some(line) = rd.next_line()? {
         let item = match line {
             Ok([]) => continue,
@@ -206,17 +204,11 @@ fn parse_into<R: Read>(input: R, tx: std::sync::mpsc::SyncSender<Vec<Item>>, bac
             },
             Err(err) => Item::Bad { line_no: rd.line_no, err },
         };
-        batch.push(item);
-        if batch.len() == BATCH {
-            let next = back.try_recv().unwrap_or_else(|_| Vec::with_capacity(BATCH));
-            if tx.send(std::mem::replace(&mut batch, next)).is_err() {
-                return Ok(());
-            }
+        if !batches.push(item) {
+            return Ok(());
         }
     }
-    if !batch.is_empty() {
-        let _ = tx.send(batch);
-    }
+    batches.flush();
     Ok(())
 }
 
@@ -237,29 +229,7 @@ enum Out {
 }
 
 /// Collects the pipeline's output into batches for the sink thread.
-struct BatchSink {
-    cur: Vec<Out>,
-    tx: std::sync::mpsc::SyncSender<Vec<Out>>,
-    back: std::sync::mpsc::Receiver<Vec<Out>>,
-}
-
-impl BatchSink {
-    fn push(&mut self, o: Out) {
-        self.cur.push(o);
-        if self.cur.len() == BATCH {
-            self.flush();
-        }
-    }
-    fn flush(&mut self) {
-        if self.cur.is_empty() {
-            return;
-        }
-        let next = self.back.try_recv().unwrap_or_else(|_| Vec::with_capacity(BATCH));
-        let _ = self.tx.send(std::mem::replace(&mut self.cur, next));
-    }
-}
-
-impl Sink for BatchSink {
+impl Sink for Batches<Out> {
     fn output(&mut self, est: &Estimate, frames: &[OutFrame; 4]) {
         self.push(Out::Output(*est, *frames));
     }
@@ -294,7 +264,7 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
             }
         });
         let worker = sc.spawn(move || {
-            let mut out = BatchSink { cur: Vec::with_capacity(BATCH), tx: otx, back: oback_rx };
+            let mut out = Batches::new(otx, oback_rx);
             let mut sum = Summary::default();
             for mut batch in rx {
                 for it in batch.drain(..) {
@@ -319,7 +289,7 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
             sum.finish(pipe);
             sum
         });
-        let parsed = parse_into(input, tx, back_rx);
+        let parsed = parse_into(input, Batches::new(tx, back_rx));
         let sum = worker.join().map_err(|_| io::Error::other("replay worker panicked"))?;
         writer.join().map_err(|_| io::Error::other("replay writer panicked"))?;
         parsed.map(|_| sum)
