@@ -575,6 +575,7 @@ mod tests {
             temp: 25.5,
             flags: crate::estimator::flags::STANDSTILL | crate::estimator::flags::SUSPECT,
             ratio: 1.0,
+            aid: Default::default(),
         }
     }
 

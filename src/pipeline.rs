@@ -78,6 +78,10 @@ pub struct Report {
     /// (deg, 0 unless the pull-aways turned them) and the pull-aways seen
     /// (None in the paper's modes).
     pub vehicle_axes: Option<(f64, u32)>,
+    /// What every aid source of the default filter did at its last update
+    /// tick (None in the paper's modes).
+    #[serde(skip)]
+    pub aid_now: Option<crate::estimator::mekf::AidReport>,
     /// The power-on speed hypotheses' outcome (None when they did not run).
     pub power_on: Option<crate::estimator::PowerOnSpeed>,
     /// Speed frames decoded and dropped (None without `[speed]`).
@@ -117,6 +121,10 @@ impl Report {
                 c.rest_s, c.relevels, c.gated_s, c.refused_max_s, c.reacquired, c.restarts
             );
             s += &format!("rules that acted (ticks, or times for an event): {}\n", c.rules);
+            s += &format!("aid sources (update ticks fused/refused, the worst refused test ratio): {}\n", c.aid);
+            if let Some(a) = &self.aid_now {
+                s += &format!("aid sources at the last update: {a}\n");
+            }
             if let Some(q) = c.rest_never_found() {
                 s += &format!(
                     "standstill never found: the quietest deviations were {q}; if the unit stood still, its noise or vibration is above them (a noisier part than the ADIS16448, seen in blocks of about 204.8 Hz, needs its own [rest])\n"
@@ -292,6 +300,7 @@ impl Pipeline {
             magnetometer: self.estimator.magnetometer(),
             vehicle: self.estimator.mekf().map(|m| m.vehicle()),
             vehicle_axes: self.estimator.mekf().map(|m| m.vehicle_axes()),
+            aid_now: self.estimator.mekf().map(|m| *m.aid_report()),
             power_on: self.estimator.power_on_speed(),
             speed: self.speed_counts(),
             rate: (span >= RATE_CHECK_S).then(|| (1.0 / self.period, self.steps as f64 / span)),

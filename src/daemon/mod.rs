@@ -485,6 +485,9 @@ fn status_line(last: &Option<Estimate>, silent: bool, pipe: &Pipeline, shell: &S
             "; standstill {:.0} s, re-levels {}, restarts {}, refused {:.0} s, rules acted: {}",
             k.rest_s, k.relevels, k.restarts, k.gated_s, k.rules
         );
+        if let Some(a) = &r.aid_now {
+            what += &format!("; aid sources now: {a}");
+        }
         if let Some(q) = k.rest_never_found() {
             what += &format!(" (none found yet: the quietest deviations were {q})");
         }

@@ -34,7 +34,7 @@ use crate::config::{Config, Mode};
 use crate::estimator::switching::Switching;
 use crate::thermal::{SlopeLearner, SlopeParams, SlopeState, Thermal};
 use hypotheses::{BankEnd, SpeedHypotheses};
-use mekf::{MagUse, Mekf, MekfCounters, MekfParams, G};
+use mekf::{AidWord, MagUse, Mekf, MekfCounters, MekfParams, G};
 use paper::Paper;
 use rest::RestParams;
 
@@ -100,6 +100,9 @@ pub struct Estimate {
     pub flags: u16,
     /// |a| / g0.
     pub ratio: f64,
+    /// What the default filter's aid sources did at its last update tick
+    /// (`mekf::aid`; all not applicable in the paper's modes): `EST_AID`.
+    pub aid: AidWord,
 }
 
 /// g0: the mean |f| (g) over the first `g0_window_s` seconds, and over the
@@ -224,6 +227,8 @@ struct FilterOut {
     slope_point: Option<(f64, [f64; 3], f64)>,
     /// The filter's state is finite.
     finite: bool,
+    /// What the default filter's aid sources did at its last tick.
+    aid: AidWord,
 }
 
 /// The power-on speed hypotheses' outcome (`hypotheses`), for the summary
@@ -531,6 +536,7 @@ impl Estimator {
             temp: s.temp,
             flags: fl,
             ratio: out.ratio,
+            aid: out.aid,
         };
         if out.finite && est.is_finite() {
             est
@@ -597,7 +603,16 @@ impl Estimator {
                 let (mode, fl, ratio, sp) = p.step(inp, thermal_on, |a, b| thermal.delta(a, b));
                 let b = p.bias_deg();
                 let slope_point = sp.then_some((s.temp, b, inp.dt));
-                FilterOut { mode, flags: fl, ratio, att: p.attitude(), bias: b, slope_point, finite: p.state_is_finite() }
+                FilterOut {
+                    mode,
+                    flags: fl,
+                    ratio,
+                    att: p.attitude(),
+                    bias: b,
+                    slope_point,
+                    finite: p.state_is_finite(),
+                    aid: AidWord::default(),
+                }
             }
             Filter::Mekf(m) => {
                 // a counter restart is a gap of unknown length
@@ -620,7 +635,7 @@ impl Estimator {
                 let b = m.bias;
                 let slope_point = m.rest_point.take();
                 let bias = [b[0] * R2D, b[1] * R2D, b[2] * R2D];
-                FilterOut { mode, flags: fl, ratio, att: m.euler(), bias, slope_point, finite: m.started() }
+                FilterOut { mode, flags: fl, ratio, att: m.euler(), bias, slope_point, finite: m.started(), aid: m.aid_report().packed() }
             }
         }
     }

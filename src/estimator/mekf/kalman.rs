@@ -8,7 +8,7 @@ impl Mekf {
     /// The propagation of `propagate` without process noise, over the
     /// samples accumulated so far (for tests).
     #[cfg(test)]
-    pub(super) fn propagate_noiseless(&mut self) {
+    pub(in crate::estimator::mekf) fn propagate_noiseless(&mut self) {
         let a = self.acc.clone();
         let saved = (self.p.q_gyro, self.p.q_bias, self.p.q_accel, self.p.q_scale, self.p.gyro_scale, self.p.q_bias_motion);
         self.p.q_gyro = 0.0;
@@ -23,7 +23,7 @@ impl Mekf {
 
     /// `P = Φ P Φ^T + Q` with `Φ = [[I, A, 0, 0], [0, I, 0, 0], [B, D, I, 0], [0, 0, 0, 1]]`,
     /// `A = -Σ C dt`, `B = -[Σ C f dt ×]`, `D ≈ B A / 2`.
-    pub(super) fn propagate(&mut self, a: &Accum) {
+    pub(in crate::estimator::mekf) fn propagate(&mut self, a: &Accum) {
         let mut am = [[0.0; 3]; 3];
         for i in 0..3 {
             for j in 0..3 {
@@ -117,7 +117,7 @@ impl Mekf {
     /// vertical velocity take up the constraint's innovations, and the pitch
     /// of the simulated `smooth` seed 8 ran 3 deg off while the car sped up).
     /// The shares add to at most the whole of `q_accel`.
-    pub(super) fn velocity_noise(&self, a: &Accum) -> Mat3 {
+    pub(in crate::estimator::mekf) fn velocity_noise(&self, a: &Accum) -> Mat3 {
         let (t, n) = (a.t, a.n as f64);
         let iso = |q: f64| [[q, 0.0, 0.0], [0.0, q, 0.0], [0.0, 0.0, q]];
         // a hand's motion is not a car's: a free unit keeps `q_accel`
@@ -153,8 +153,10 @@ impl Mekf {
 
     /// One scalar update `nu = h dx + noise(r)`, gated; the gain rows of the
     /// tilt and the bias only where allowed (Joseph form keeps P right for
-    /// the restricted gain). Accumulates into `dx`.
-    pub(super) fn update(&mut self, h: &[f64; N], nu: f64, r: f64, gain: Gain, gate: f64) -> Upd {
+    /// the restricted gain). Accumulates into `dx`. Returns fused or
+    /// refused with the test ratio `ν² / (gate_sigma² · S)`, or not
+    /// applicable when the innovation's variance is not positive.
+    pub(in crate::estimator::mekf) fn update(&mut self, h: &[f64; N], nu: f64, r: f64, gain: Gain, gate: f64) -> AidStatus {
         // most rows have one to three non-zero entries
         let mut nz = [0usize; N];
         let mut n = 0;
@@ -182,14 +184,15 @@ impl Mekf {
             hdx += h[j] * self.dx[j];
         }
         if s.is_nan() || s <= 0.0 || s.is_infinite() {
-            return Upd::Skipped;
+            return AidStatus::NotApplicable(Why::Unobservable);
         }
         let nu = nu - hdx;
         if self.scoring && gain.velocity {
             self.log_likelihood -= 0.5 * ((nu * nu / s).min(gate) + s.ln());
         }
+        let ratio = nu * nu / (self.p.gate * s);
         if nu * nu > gate * s {
-            return Upd::Gated;
+            return AidStatus::Refused(ratio);
         }
         let mut k = [0.0; N];
         for i in 0..N {
@@ -230,12 +233,12 @@ impl Mekf {
                 }
             }
         }
-        Upd::Fused
+        AidStatus::Fused(ratio)
     }
 
     /// Cut the correlations of these error-state rows with every other
     /// (their variances stay).
-    pub(super) fn decorrelate(&mut self, rows: &[usize]) {
+    pub(in crate::estimator::mekf) fn decorrelate(&mut self, rows: &[usize]) {
         for &i in rows {
             for j in 0..N {
                 if j != i {
@@ -248,7 +251,7 @@ impl Mekf {
 
     /// Bring the 1-sigma of these rows down to `sigma` where it is above it,
     /// their correlations scaled with them (the covariance stays positive).
-    pub(super) fn shrink(&mut self, rows: &[usize], sigma: f64) {
+    pub(in crate::estimator::mekf) fn shrink(&mut self, rows: &[usize], sigma: f64) {
         for &i in rows {
             let s = (sigma / self.cov[i][i].sqrt()).min(1.0);
             for j in 0..N {
@@ -259,7 +262,7 @@ impl Mekf {
     }
 
     /// Apply the accumulated error to the state and clear it.
-    pub(super) fn inject(&mut self) {
+    pub(in crate::estimator::mekf) fn inject(&mut self) {
         let d = self.dx;
         if d.iter().all(|v| *v == 0.0) {
             return;

@@ -39,19 +39,19 @@
 //! read it, or velocity constraints refused most of the time) restarts from
 //! the prior (flagged, counted).
 
+pub mod aid;
+mod context;
 mod forward_axis;
-mod gap;
 mod gravity_lp;
-mod gravity_turned;
 mod kalman;
-mod measure;
-mod motion_model;
 mod params;
 mod rules;
+mod supervise;
 mod tick;
-mod velocity_belief;
-use gravity_turned::GravityWatch;
+use context::GravityWatch;
 
+use aid::{tilt_innovation, FreeGravity, HeadingAid, LevelWindow, VelocityRefusals, WheelSpeed};
+pub use aid::{Aid, AidCounts, AidReport, AidStatus, AidWord, Rows, Why};
 use forward_axis::{PullAways, VehicleAxes};
 use gravity_lp::{GravityLp, LpGains};
 pub use params::{MagUse, MekfParams, Vehicle};
@@ -153,14 +153,6 @@ const LEVEL_TURN_MAX: f64 = 3.0 * D2R;
 /// A car's roll, per level window, is zero within this (`level_roll_update`).
 const LEVEL_ROLL_SIGMA: f64 = 3.0 * D2R;
 
-/// What a scalar update did.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Upd {
-    Fused,
-    Gated,
-    Skipped,
-}
-
 /// Which gain rows an update may move.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Gain {
@@ -204,14 +196,6 @@ struct Accum {
     quiet: bool,
 }
 
-/// The window of `Mekf::level_rate_update`: seconds, Σ C dt, Σ C ω_raw dt.
-#[derive(Clone, Debug, Default)]
-struct LevelWindow {
-    t: f64,
-    s_c: Mat3,
-    s_cg: [f64; 3],
-}
-
 /// What the updates of one tick did.
 #[derive(Clone, Copy, Debug, Default)]
 struct Outcome {
@@ -246,6 +230,8 @@ pub struct MekfCounters {
     pub quietest: Option<Quietest>,
     /// How often each named rule acted (`rules.rs`).
     pub rules: RuleCounts,
+    /// At how many ticks each aid source was fused and refused (`aid`).
+    pub aid: AidCounts,
 }
 
 impl MekfCounters {
@@ -316,41 +302,33 @@ pub struct Mekf {
     /// Low-passed body-frame specific force and roll/pitch rate power, for
     /// deciding from the measurements alone whether this is a vehicle.
     body_f_lp: [f64; 3],
-    /// Low-passed share of the time the velocity constraints were refused.
-    refused_share: f64,
     last_rest: Option<RestState>,
     switching: Switching,
     dwell: f64,
-    /// Magnetometer: decided use (None while undecided), field reference
-    /// (norm gauss, dip rad), the auto decision's sums.
+    /// Magnetometer: decided use (None while undecided), the auto
+    /// decision's sums.
     mag_on: Option<bool>,
-    mag_ref: Option<(f64, f64)>,
-    /// The reference was taken before the tilt was anchored.
-    mag_ref_weak: bool,
-    /// Seconds the heading update has been refused without a break.
-    heading_refused: f64,
     mag_sum: f64,
     mag_n: u32,
-    mag_disturbed: bool,
-    mag_dist_s: f64,
     /// Seconds still with an update refused; seconds in motion with the
     /// velocity constraints refused.
     refused_still: f64,
-    /// Seconds the wheels have read standing.
-    wheel_standing_s: f64,
     /// The magnetic field (body frame, mean of a tick) when the rest
     /// detector's conditions began to hold (`field_turned`).
     quiet_field: Option<[f64; 3]>,
     /// The gravity's turn in the body frame over a quiet period
     /// (`gravity_turned`).
     quiet_gravity: GravityWatch,
-    nhc_refused: f64,
-    /// Seconds the free unit's low-passed gravity has been refused without a break.
-    gravity_refused: f64,
-    /// Seconds the free unit's low-passed gravity has been fused without a
-    /// break since the last start or re-level (0 under the vehicle model,
-    /// which fuses no such gravity).
-    gravity_held: f64,
+    /// The aid sources' own states: the velocity constraints' refusals,
+    /// the free unit's gravity, the heading, the wheels.
+    refusals: VelocityRefusals,
+    free_gravity: FreeGravity,
+    heading: HeadingAid,
+    wheel: WheelSpeed,
+    /// What every aid source did at this tick (`aid`), and at the last
+    /// finished one (what is published).
+    aid: AidReport,
+    last_aid: AidReport,
     /// Not a vehicle, no bias read yet: the tilt has settled on the
     /// low-passed gravity since the last start or re-level (the field's
     /// dip re-taken, the bias learned in motion provisionally).
@@ -363,9 +341,6 @@ pub struct Mekf {
     quiet_since_gap: bool,
     /// A counter gap happened and no quiet period has ended since.
     after_gap: bool,
-    /// The heading the car turned to over a gap is not known yet: the next
-    /// magnetic heading turns the whole state to it (`turn_heading`).
-    heading_open: bool,
     /// The bias-corrected rate of the last sample (rad/s), and whether the
     /// velocity still holds the lever arm's turn from before a gap.
     last_w: [f64; 3],
@@ -386,10 +361,6 @@ pub struct Mekf {
     /// The last tick's outcome, held until the next tick.
     mode: u8,
     tick_flags: u16,
-    /// The latest speed (m/s) while fresh, and whether a frame arrived
-    /// since the last update.
-    speed: Option<f64>,
-    speed_new: bool,
     /// Bias and temperature of the last tick that learned the bias.
     pub last_learned: Option<(f64, [f64; 3])>,
     /// A learning point for the thermal slope: (temp, bias deg/s, weight s).
@@ -432,26 +403,22 @@ impl Mekf {
             switching,
             dwell: 0.0,
             mag_on: None,
-            mag_ref: None,
-            mag_ref_weak: false,
-            heading_refused: 0.0,
             mag_sum: 0.0,
             mag_n: 0,
-            mag_disturbed: false,
-            mag_dist_s: 0.0,
             refused_still: 0.0,
-            wheel_standing_s: 0.0,
             quiet_field: None,
             quiet_gravity: GravityWatch::default(),
-            nhc_refused: 0.0,
-            gravity_refused: 0.0,
-            gravity_held: 0.0,
+            refusals: VelocityRefusals::default(),
+            free_gravity: FreeGravity::default(),
+            heading: HeadingAid::default(),
+            wheel: WheelSpeed::default(),
+            aid: AidReport::default(),
+            last_aid: AidReport::default(),
             tilt_settled: false,
             turn_exposure: 0.0,
             yaw_at_stop: None,
             quiet_since_gap: false,
             after_gap: false,
-            heading_open: false,
             last_w: [0.0; 3],
             lever_pending: false,
             bias_known: false,
@@ -461,15 +428,12 @@ impl Mekf {
             g_ref: GravityRef::default(),
             prior: ([0.0; 3], [0.0; 3]),
             body_f_lp: [0.0, 0.0, -1.0],
-            refused_share: 0.0,
             bias_sigma_cache: [0.0; 3],
             alpha_dt: -1.0,
             lp_gains: LpGains::new(1.0, 1.0),
             alpha_1s: 0.0,
             mode: 2,
             tick_flags: 0,
-            speed: None,
-            speed_new: false,
             last_learned: None,
             rest_point: None,
             counters: MekfCounters::default(),
@@ -540,6 +504,11 @@ impl Mekf {
     /// The log-likelihood of the measurements since scoring started.
     pub fn log_likelihood(&self) -> f64 {
         self.log_likelihood
+    }
+
+    /// What every aid source did at the last update tick.
+    pub fn aid_report(&self) -> &AidReport {
+        &self.last_aid
     }
 
     /// What the last `step` returned.
@@ -631,8 +600,7 @@ impl Mekf {
     /// `new` when it arrived since the previous sample (each frame is fused
     /// once).
     pub fn set_speed(&mut self, v: Option<f64>, new: bool) {
-        self.speed = v;
-        self.speed_new |= new && v.is_some();
+        self.wheel.set(v, new);
     }
 
     fn state_is_finite(&self) -> bool {
@@ -850,7 +818,7 @@ impl Mekf {
         self.bias = bias;
         self.v = [0.0; 3];
         self.scale = 0.0;
-        self.gravity_held = 0.0;
+        self.free_gravity.held_s = 0.0;
         self.tilt_settled = false;
         self.cov = [[0.0; N]; N];
         let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
@@ -864,26 +832,6 @@ impl Mekf {
         if self.p.speed_aided {
             self.cov[SC][SC] = self.p.init_scale_sigma * self.p.init_scale_sigma;
         }
-    }
-
-    /// A diverged state (its bias outside the part's range): start again
-    /// from the prior, the attitude from the low-passed specific force, the
-    /// heading and what was learned about gravity and the magnetometer kept.
-    fn restart_from_prior(&mut self) {
-        let (pb, ps) = self.prior;
-        let f = self.body_f_lp;
-        let yaw = quat::euler(&self.c)[2];
-        let (roll, pitch) = crate::estimator::ekf::tilt_from_accel(&f);
-        self.initialise([roll, pitch, yaw], pb, ps);
-        self.bias_known = false;
-        // the field's dip was measured with the diverged tilt
-        self.mag_ref = None;
-        self.refused_still = 0.0;
-        self.quiet_since_gap = false;
-        self.nhc_refused = 0.0;
-        self.gravity_refused = 0.0;
-        self.refused_share = 0.0;
-        self.counters.restarts += 1;
     }
 
     fn bias_deg(&self) -> [f64; 3] {

@@ -7,12 +7,12 @@
 //! the magnetometer sees. Measured only (never the filter's state), so the
 //! power-on bank's copies decide alike.
 
-use super::*;
+use crate::estimator::mekf::*;
 
 /// The direction of a quiet period's specific force in the body frame: a
 /// reference, and the tick means low-passed over 1 s.
 #[derive(Clone, Debug, Default)]
-pub(super) struct GravityWatch {
+pub(in crate::estimator::mekf) struct GravityWatch {
     /// The reference direction (unit), taken once the low-pass has had a
     /// second, and again every `GRAVITY_TURN_WINDOW_S`.
     reference: Option<[f64; 3]>,
@@ -27,7 +27,7 @@ impl GravityWatch {
     /// One quiet tick of `t` s whose mean specific force is `f` (g): true
     /// while the gravity has turned by more than `GRAVITY_TURN_DEG` within
     /// a window, and for a window after.
-    pub(super) fn quiet_tick(&mut self, f: &[f64; 3], t: f64) -> bool {
+    pub(in crate::estimator::mekf) fn quiet_tick(&mut self, f: &[f64; 3], t: f64) -> bool {
         let n = norm(f);
         if !(n > 0.5 && t > 0.0) {
             return self.hold > 0.0;
@@ -70,7 +70,7 @@ impl Mekf {
     /// A quiet tick of a vehicle during which its gravity has turned in its
     /// own frame (`GravityWatch`); the watch starts again whenever the tick
     /// is not quiet.
-    pub(super) fn gravity_turned(&mut self, a: &Accum) -> bool {
+    pub(in crate::estimator::mekf) fn gravity_turned(&mut self, a: &Accum) -> bool {
         if !a.quiet || !self.vehicle || a.n == 0 {
             self.quiet_gravity = GravityWatch::default();
             return false;
@@ -82,7 +82,7 @@ impl Mekf {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use crate::estimator::mekf::*;
 
     /// Level and still for a minute, with a rest's scatter: never turning. Pitching at 0.1 deg/s
     /// (a car at 2 m/s over a crest of 1 km radius): turning within 7 s

@@ -2,7 +2,7 @@
 //! meanwhile (`resync`), and the exact turn of the whole state to the
 //! heading a car turned to over it (`turn_heading`).
 
-use super::*;
+use crate::estimator::mekf::*;
 
 impl Mekf {
     /// A counter gap of `gap_s` seconds (the gyro was not integrated across
@@ -44,7 +44,7 @@ impl Mekf {
                 }
                 self.cov[TH + i][TH + i] += a2;
             }
-            self.heading_open = self.on(Rule::GapHeadingOpen);
+            self.heading.set_open(self.on(Rule::GapHeadingOpen));
             self.lever_pending = true;
         } else {
             for i in 0..3 {
@@ -73,7 +73,7 @@ impl Mekf {
     /// Turn the whole state about the navigation frame's down axis by `psi`
     /// (rad): attitude, velocity, the low-passed force, and the covariance of
     /// the navigation-frame errors. Nothing in the body frame changes.
-    pub(super) fn turn_heading(&mut self, psi: f64) {
+    pub(in crate::estimator::mekf) fn turn_heading(&mut self, psi: f64) {
         let dq = quat::from_rotvec(&[0.0, 0.0, psi]);
         let r = quat::to_matrix(&dq);
         self.q = quat::mul(&dq, &self.q);

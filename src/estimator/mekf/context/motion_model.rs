@@ -2,12 +2,12 @@
 //! runs, how `"auto"` decides it from the measurements, and what leaving
 //! the vehicle model voids.
 
-use super::*;
+use crate::estimator::mekf::*;
 
 impl Mekf {
     /// `vehicle = "auto"`, once per sample while the vehicle model is in
     /// use: the body rates (rad/s, raw) and specific force (g) decide.
-    pub(super) fn watch_vehicle_model(&mut self, gyro: &[f64; 3], accel: &[f64; 3]) {
+    pub(in crate::estimator::mekf) fn watch_vehicle_model(&mut self, gyro: &[f64; 3], accel: &[f64; 3]) {
         if !self.may_leave_vehicle_model() {
             return;
         }
@@ -60,7 +60,7 @@ impl Mekf {
     /// standstill has read it, the prior bias with the prior's sigma (what
     /// was learned with a wrong tilt or a wrong model is void): what the end
     /// of the vehicle model and a re-levelling in motion leave.
-    pub(super) fn free_velocity_and_unread_bias(&mut self) {
+    pub(in crate::estimator::mekf) fn free_velocity_and_unread_bias(&mut self) {
         self.free_velocity();
         if !self.bias_known {
             self.decorrelate(&[BI, BI + 1, BI + 2]);
@@ -88,20 +88,10 @@ impl Mekf {
         Some(m)
     }
 
-    /// A free unit's velocity: zero, `free_velocity_sigma`, uncorrelated.
-    pub(super) fn free_velocity(&mut self) {
-        self.decorrelate(&[VE, VE + 1, VE + 2]);
-        self.v = [0.0; 3];
-        for i in 0..3 {
-            self.dx[VE + i] = 0.0;
-            self.cov[VE + i][VE + i] = self.p.free_var;
-        }
-    }
-
     /// A unit that is not a vehicle, with a motion walk configured: it
     /// learns its bias from the low-passed gravity while it moves.
     #[inline]
-    pub(super) fn learns_in_motion(&self) -> bool {
+    pub(in crate::estimator::mekf) fn learns_in_motion(&self) -> bool {
         !self.vehicle && self.p.q_bias_motion > 0.0
     }
 }

@@ -1,17 +1,17 @@
 //! What the filter's own velocity says about the car: whether a still
-//! period is a stop or a smooth cruise (`zero_velocity_nis`), how far that
-//! velocity may have drifted since the last stop (`velocity_age_var`), and
-//! the bounds a car's forward speed keeps when nothing measures it
-//! (`speed_bound_update`).
+//! period is a stop or a smooth cruise (`zero_velocity_nis`), and how far
+//! that velocity may have drifted since the last stop (`velocity_age_var`).
+//! The bounds a car's forward speed keeps when nothing measures it are an
+//! aid source (`aid/forward_speed.rs`).
 
-use super::*;
+use crate::estimator::mekf::*;
 
 impl Mekf {
     /// The velocity's NIS against standing, `vᵀ (P_vv + (σ_zupt² + age) I)⁻¹ v`:
     /// beyond `stop_sigma`², the velocity state refuses a standstill. A
     /// covariance that is not positive definite says the velocity is not
     /// known: 0 (nothing refuses the stop).
-    pub(super) fn zero_velocity_nis(&self) -> f64 {
+    pub(in crate::estimator::mekf) fn zero_velocity_nis(&self) -> f64 {
         let extra = self.p.zupt_var + self.velocity_age_var();
         let mut m = [[0.0; 3]; 3];
         for (i, row) in m.iter_mut().enumerate() {
@@ -39,7 +39,7 @@ impl Mekf {
     /// tilt took the bias in (the two are one there); once the car has
     /// turned by Δψ the bias no longer cancels, and the velocity integrates
     /// `|R(Δψ) − I| b = 2 |sin(Δψ/2)| b`. On a straight road it stays 0.
-    pub(super) fn velocity_age_var(&self) -> f64 {
+    pub(in crate::estimator::mekf) fn velocity_age_var(&self) -> f64 {
         if !self.on(Rule::VelocityAge) {
             return 0.0;
         }
@@ -49,7 +49,7 @@ impl Mekf {
 
     /// Per tick: the heading turned since the last standstill, integrated
     /// (`velocity_age_var`); a standstill starts it again.
-    pub(super) fn age_velocity(&mut self, t: f64, at_rest: bool) {
+    pub(in crate::estimator::mekf) fn age_velocity(&mut self, t: f64, at_rest: bool) {
         let yaw = quat::euler(&self.c)[2];
         if at_rest {
             self.turn_exposure = 0.0;
@@ -59,34 +59,11 @@ impl Mekf {
         let y0 = *self.yaw_at_stop.get_or_insert(yaw);
         self.turn_exposure += 2.0 * (0.5 * wrap_pi(yaw - y0)).sin().abs() * t;
     }
-
-    /// A car's forward speed stays within `-max_reverse_speed ..
-    /// max_forward_speed`: a forward velocity beyond is a pitch (or an
-    /// accelerometer bias) integrated into a speed no car has, with no stop
-    /// or wheel to say so. Held to the bound, one-sided, never gated:
-    /// inside the band it says nothing (a crawl is not pulled to a cruise).
-    pub(super) fn speed_bound_update(&mut self, omega: &[f64; 3], gain: Gain) {
-        let (fwd, rev) = (self.p.max_forward_speed, self.p.max_reverse_speed);
-        if !self.vehicle || fwd <= 0.0 || !self.on(Rule::ForwardSpeedBound) {
-            return;
-        }
-        let (val, h) = self.body_velocity_row(0, omega);
-        let bound = if val > fwd {
-            fwd
-        } else if val < -rev {
-            -rev
-        } else {
-            return;
-        };
-        let var = self.p.speed_bound_sigma * self.p.speed_bound_sigma;
-        let _ = self.update(&h, bound - val, var, gain, f64::INFINITY);
-        self.counters.rules.note(Rule::ForwardSpeedBound);
-    }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use crate::estimator::mekf::*;
 
     /// A level car (vehicle model on, no magnetometer) started with an
     /// unread bias, its forward speed `u` known to `sigma`.
@@ -172,7 +149,11 @@ mod tests {
             let mut m = car(u, 5.0);
             m.p.max_forward_speed = fwd;
             m.dx = [0.0; N];
-            m.speed_bound_update(&omega, Gain { tilt: true, heading: true, bias: false, velocity: true });
+            m.fuse_forward_speed(&omega, Gain { tilt: true, heading: true, bias: false, velocity: true });
+            // the source says what it did: held beyond the band, nothing inside it
+            let s = m.aid.get(Aid::ForwardSpeed);
+            let held = (fwd > 0.0 && u > fwd) || u < -m.p.max_reverse_speed;
+            assert_eq!(s.is_fused(), held, "{u} {fwd}: {s}");
             m.inject();
             m.forward_speed()
         };

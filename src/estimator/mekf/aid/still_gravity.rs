@@ -1,0 +1,58 @@
+//! Gravity at a still unit: the tick's mean specific force is gravity,
+//! which tells roll and pitch.
+
+use crate::estimator::mekf::*;
+
+/// The tilt error seen in `u`, the measured specific force's direction in
+/// the navigation frame (unit; `-e_z` when the tilt is right): the rotation
+/// that takes `u` to `-e_z` is `(dθ_x, dθ_y, 0)`; returned as the
+/// innovations `(dθ_y, -dθ_x)` of the rows `h[TH + 1] = 1` and
+/// `h[TH] = -1`. Near level this is `(u_x, u_y)`; it stays the whole angle
+/// far from it (a filter upside down sees 180 deg, not `|u_xy|` ≈ 0, which
+/// would hold it there).
+pub(in crate::estimator::mekf) fn tilt_innovation(u: &[f64; 3]) -> [f64; 2] {
+    let s = (u[0] * u[0] + u[1] * u[1]).sqrt();
+    let k = if s > 1e-12 { quat::atan2(s, -u[2]) / s } else { 1.0 };
+    [k * u[0], k * u[1]]
+}
+
+impl Mekf {
+    /// The tick's mean specific force as gravity, its noise the rest
+    /// detector's accelerometer variance over the tick's samples (at least
+    /// `tilt_floor`).
+    ///
+    /// A cruise's tilt error has run into its velocity since the tilt was
+    /// last right (the velocity integrates g times it): the update corrects
+    /// that velocity too, by their covariance, as an unrestricted Kalman
+    /// update does. With the velocity held out, a smooth 0.03 g pull-away
+    /// the rest detector takes for still put half a degree into the pitch
+    /// and left the speed a third short, and the car, still crawling, later
+    /// passed for stopped (`crawl` seed 3). Only once a standstill has read
+    /// the bias: before, the tilt's error is mostly the bias's, which the
+    /// covariance of a filter that far off does not describe (a copy of the
+    /// power-on bank then believed a speed that refused the first stop).
+    pub(in crate::estimator::mekf) fn fuse_still_gravity(&mut self, a: &Accum, at_rest: bool, gate: f64) -> Rows {
+        let n = a.n as f64;
+        let f = [a.accel[0] / n, a.accel[1] / n, a.accel[2] / n];
+        let fnm = norm(&f);
+        if fnm <= 0.5 {
+            let s = Rows::default();
+            self.aid.set(Aid::StillGravity, s.status);
+            return s;
+        }
+        let u = rotate(&self.c, &[f[0] / fnm, f[1] / fnm, f[2] / fnm]);
+        let avar = self.last_rest.map_or(1e-4, |r| r.accel_var / 3.0);
+        let r_tilt = (avar / n).max(self.p.tilt_floor);
+        let nu = tilt_innovation(&u);
+        let gain = Gain { tilt: true, heading: true, bias: true, velocity: !at_rest && self.bias_known };
+        let mut h = [0.0; N];
+        h[TH + 1] = 1.0;
+        let mut s = Rows::default();
+        s.push(self.update(&h, nu[0], r_tilt, gain, gate));
+        let mut h = [0.0; N];
+        h[TH] = -1.0;
+        s.push(self.update(&h, nu[1], r_tilt, gain, gate));
+        self.aid.set(Aid::StillGravity, s.status);
+        s
+    }
+}
