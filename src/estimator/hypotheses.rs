@@ -44,8 +44,8 @@
 //! by its likelihood ran to -20 m/s with its pitch 13 deg off).
 //! It costs one step per filter while it runs; no allocation per step.
 
-use super::mekf::Mekf;
-use super::StepIn;
+use super::mekf::{Mekf, Rule};
+use super::{PowerOnSpeed, StepIn};
 
 /// Spacing of the forward-speed hypotheses, m/s (each has half of it as
 /// its sigma), and the largest (130 km/h).
@@ -199,5 +199,71 @@ impl SpeedHypotheses {
             published.set_scoring(false);
         }
         BankStep { switched, ended }
+    }
+}
+
+/// The default filter as the facade holds it: the published filter and,
+/// while they run, the power-on speed hypotheses. The bank owns every copy;
+/// which one is published is its own business (the facade reads the
+/// published one, never swaps it).
+#[derive(Clone, Debug)]
+pub struct MekfBank {
+    published: Mekf,
+    hypotheses: Option<Box<SpeedHypotheses>>,
+    power_on: Option<PowerOnSpeed>,
+}
+
+impl MekfBank {
+    pub fn new(m: Mekf) -> MekfBank {
+        MekfBank { published: m, hypotheses: None, power_on: None }
+    }
+
+    /// The published filter.
+    pub fn filter(&self) -> &Mekf {
+        &self.published
+    }
+
+    /// The published filter, to configure between samples (its speed, its
+    /// vehicle axes).
+    pub fn filter_mut(&mut self) -> &mut Mekf {
+        &mut self.published
+    }
+
+    /// The hypotheses' outcome (None: not run).
+    pub fn power_on(&self) -> Option<PowerOnSpeed> {
+        self.power_on
+    }
+
+    /// Start the published filter on the first sample (`Mekf::start`) and,
+    /// unless the unit is known not to be a car or its wheels will say how
+    /// fast, the hypotheses: a car may be moving at power-on.
+    pub fn start(&mut self, accel: &[f64; 3], magn: &[f64; 3], bias: [f64; 3], bias_sigma: [f64; 3], known: bool) {
+        let m = &mut self.published;
+        m.start(accel, magn, bias, bias_sigma, known);
+        self.hypotheses = (m.vehicle() && !m.speed_aided() && m.on(Rule::SpeedHypotheses)).then(|| Box::new(SpeedHypotheses::new(m)));
+        self.power_on = self.hypotheses.as_ref().map(|_| PowerOnSpeed { speed_ms: 0.0, ended: None });
+    }
+
+    /// One sample, after a counter gap of `gap` seconds if any: every copy
+    /// steps, the best is published. Returns what the published filter's
+    /// step returned (mode, flags, `|a| / g0`).
+    pub fn step(&mut self, inp: &StepIn, gap: Option<f64>) -> (u8, u16, f64) {
+        let m = &mut self.published;
+        if let Some(g) = gap {
+            m.resync(g);
+        }
+        let mut out = m.step(inp);
+        if let Some(h) = self.hypotheses.as_mut() {
+            let b = h.step(inp, gap, m);
+            if b.switched {
+                // another filter is published: what its step returned
+                out = m.last_step();
+            }
+            self.power_on = Some(PowerOnSpeed { speed_ms: h.published_speed(), ended: b.ended.map(|e| (inp.t, e)) });
+            if b.ended.is_some() {
+                self.hypotheses = None;
+            }
+        }
+        out
     }
 }

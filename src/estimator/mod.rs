@@ -33,7 +33,7 @@ use crate::adis::Sample;
 use crate::config::{Config, Mode};
 use crate::estimator::switching::Switching;
 use crate::thermal::{SlopeLearner, SlopeParams, SlopeState, Thermal};
-use hypotheses::{BankEnd, SpeedHypotheses};
+use hypotheses::{BankEnd, MekfBank};
 use mekf::{AidWord, MagUse, Mekf, MekfCounters, MekfParams, G};
 use paper::Paper;
 use rest::RestParams;
@@ -180,7 +180,8 @@ pub struct StepIn {
 #[allow(clippy::large_enum_variant)]
 enum Filter {
     Paper(Paper),
-    Mekf(Mekf),
+    /// The default filter with its power-on speed hypotheses.
+    Mekf(Box<MekfBank>),
 }
 
 #[derive(Clone, Debug)]
@@ -205,9 +206,6 @@ pub struct Estimator {
     temp_prev: f64,
     prior: Option<Learned>,
     init_bias_sigma: f64,
-    /// The default filter's power-on speed hypotheses while they run.
-    hypotheses: Option<Box<SpeedHypotheses>>,
-    power_on: Option<PowerOnSpeed>,
     /// Restarts from the prior after a non-finite state (flagged `RESYNC`).
     nonfinite_restarts: u64,
 }
@@ -315,7 +313,7 @@ impl Estimator {
         let e = &cfg.estimator;
         let switching = Switching::new(&cfg.switching, p.rate_hz);
         let filter = match e.mode {
-            Mode::Mekf => Filter::Mekf(Mekf::new(mekf_params(cfg), switching)),
+            Mode::Mekf => Filter::Mekf(Box::new(MekfBank::new(Mekf::new(mekf_params(cfg), switching)))),
             _ => {
                 let use_mag = p.magnetometer && !matches!(e.use_magnetometer, crate::config::AutoBool::Bool(false));
                 Filter::Paper(Paper::new(cfg, switching, use_mag))
@@ -344,8 +342,6 @@ impl Estimator {
             temp_prev: 0.0,
             prior: None,
             init_bias_sigma: cfg.init_bias_sigma(),
-            hypotheses: None,
-            power_on: None,
             nonfinite_restarts: 0,
         }
     }
@@ -368,8 +364,8 @@ impl Estimator {
     /// (the default mode).
     pub fn set_vehicle_axes(&mut self, yaw_deg: f64) -> bool {
         match &mut self.filter {
-            Filter::Mekf(m) => {
-                m.set_vehicle_axes(yaw_deg);
+            Filter::Mekf(b) => {
+                b.filter_mut().set_vehicle_axes(yaw_deg);
                 true
             }
             Filter::Paper(_) => false,
@@ -384,7 +380,8 @@ impl Estimator {
         }
         let l = match &self.filter {
             Filter::Paper(p) => p.learned(),
-            Filter::Mekf(m) => m.last_learned.map(|(temp, bias)| {
+            Filter::Mekf(b) => b.filter().last_learned().map(|(temp, bias)| {
+                let m = b.filter();
                 let s = m.bias_sigma();
                 Learned { bias, bias_sigma: [s[0] * R2D, s[1] * R2D, s[2] * R2D], temp }
             }),
@@ -426,7 +423,7 @@ impl Estimator {
     /// The default filter's counters (None in the paper's modes).
     pub fn mekf_counters(&self) -> Option<MekfCounters> {
         match &self.filter {
-            Filter::Mekf(m) => Some(m.counters()),
+            Filter::Mekf(b) => Some(b.filter().counters()),
             Filter::Paper(_) => None,
         }
     }
@@ -434,7 +431,7 @@ impl Estimator {
     /// Whether the magnetometer is in use (None: not decided yet).
     pub fn magnetometer(&self) -> Option<bool> {
         match &self.filter {
-            Filter::Mekf(m) => m.magnetometer(),
+            Filter::Mekf(b) => b.filter().magnetometer(),
             Filter::Paper(_) => None,
         }
     }
@@ -442,7 +439,7 @@ impl Estimator {
     /// The default filter (for tests and diagnostics).
     pub fn mekf(&self) -> Option<&Mekf> {
         match &self.filter {
-            Filter::Mekf(m) => Some(m),
+            Filter::Mekf(b) => Some(b.filter()),
             Filter::Paper(_) => None,
         }
     }
@@ -450,7 +447,10 @@ impl Estimator {
     /// The power-on speed hypotheses' outcome (None: not run, as in the
     /// paper's modes, with wheel speeds, or for a unit set not to be a vehicle).
     pub fn power_on_speed(&self) -> Option<PowerOnSpeed> {
-        self.power_on
+        match &self.filter {
+            Filter::Mekf(b) => b.power_on(),
+            Filter::Paper(_) => None,
+        }
     }
 
     /// The paper's EKF (for tests and diagnostics).
@@ -465,8 +465,8 @@ impl Estimator {
     /// while it is fresh, None when there is none (not configured, stale);
     /// `new` when a frame arrived since the previous sample.
     pub fn set_speed(&mut self, v: Option<f64>, new: bool) {
-        if let Filter::Mekf(m) = &mut self.filter {
-            m.set_speed(v, new);
+        if let Filter::Mekf(b) = &mut self.filter {
+            b.filter_mut().set_speed(v, new);
         }
     }
 
@@ -488,14 +488,9 @@ impl Estimator {
         let (bias, sigma) = self.initial_bias(s.temp);
         match &mut self.filter {
             Filter::Paper(p) => p.start(s, bias, sigma),
-            Filter::Mekf(m) => {
+            Filter::Mekf(b) => {
                 let sig = sigma.map_or([self.init_bias_sigma * D2R; 3], |v| v.map(|x| (x * D2R).max(1e-4 * D2R)));
-                m.start(&s.accel, &s.magn, bias.map(|b| b * D2R), sig, sigma.is_some());
-                // a car may be moving at power-on: unless it is known not to
-                // be a car, or its wheels will say how fast
-                self.hypotheses =
-                    (m.vehicle() && !m.speed_aided() && m.on(mekf::Rule::SpeedHypotheses)).then(|| Box::new(SpeedHypotheses::new(m)));
-                self.power_on = self.hypotheses.as_ref().map(|_| PowerOnSpeed { speed_ms: 0.0, ended: None });
+                b.start(&s.accel, &s.magn, bias.map(|b| b * D2R), sig, sigma.is_some());
             }
         }
         self.temp_prev = s.temp;
@@ -614,26 +609,13 @@ impl Estimator {
                     aid: AidWord::default(),
                 }
             }
-            Filter::Mekf(m) => {
+            Filter::Mekf(bank) => {
                 // a counter restart is a gap of unknown length
                 let gap = resync.then_some(if s.steps == 0 { UNKNOWN_GAP_S } else { s.steps as f64 * self.period });
-                if let Some(g) = gap {
-                    m.resync(g);
-                }
-                let (mut mode, mut fl, mut ratio) = m.step(inp);
-                if let Some(h) = self.hypotheses.as_mut() {
-                    let b = h.step(inp, gap, m);
-                    if b.switched {
-                        // another filter is published: what its step returned
-                        (mode, fl, ratio) = m.last_step();
-                    }
-                    self.power_on = Some(PowerOnSpeed { speed_ms: h.published_speed(), ended: b.ended.map(|e| (inp.t, e)) });
-                    if b.ended.is_some() {
-                        self.hypotheses = None;
-                    }
-                }
-                let b = m.bias;
-                let slope_point = m.rest_point.take();
+                let (mode, fl, ratio) = bank.step(inp, gap);
+                let m = bank.filter_mut();
+                let b = m.bias();
+                let slope_point = m.take_rest_point();
                 let bias = [b[0] * R2D, b[1] * R2D, b[2] * R2D];
                 FilterOut { mode, flags: fl, ratio, att: m.euler(), bias, slope_point, finite: m.started(), aid: m.aid_report().packed() }
             }
@@ -668,7 +650,7 @@ impl Estimator {
         self.t = keep_t;
         let (att, bias) = match &self.filter {
             Filter::Paper(p) => (p.attitude(), p.bias_deg()),
-            Filter::Mekf(m) => (m.euler(), m.bias.map(|b| b * R2D)),
+            Filter::Mekf(b) => (b.filter().euler(), b.filter().bias().map(|b| b * R2D)),
         };
         let f = |v: f64| if v.is_finite() { v } else { 0.0 };
         let bias = bias.map(f);

@@ -276,7 +276,7 @@ pub struct Mekf {
     q: Quat,
     c: Mat3,
     /// Bias, rad/s.
-    pub bias: [f64; 3],
+    bias: [f64; 3],
     v: [f64; 3],
     scale: f64,
     /// Low-passed specific force in the navigation frame, g, and the
@@ -362,9 +362,9 @@ pub struct Mekf {
     mode: u8,
     tick_flags: u16,
     /// Bias and temperature of the last tick that learned the bias.
-    pub last_learned: Option<(f64, [f64; 3])>,
+    last_learned: Option<(f64, [f64; 3])>,
     /// A learning point for the thermal slope: (temp, bias deg/s, weight s).
-    pub rest_point: Option<(f64, [f64; 3], f64)>,
+    rest_point: Option<(f64, [f64; 3], f64)>,
     pub(in crate::estimator) counters: MekfCounters,
     /// The rest detector's smallest mean square deviations over the run
     /// (gyro (rad/s)^2, specific force g^2; `Mekf::counters` reports them).
@@ -504,6 +504,23 @@ impl Mekf {
     /// The log-likelihood of the measurements since scoring started.
     pub fn log_likelihood(&self) -> f64 {
         self.log_likelihood
+    }
+
+    /// The bias, rad/s.
+    pub fn bias(&self) -> [f64; 3] {
+        self.bias
+    }
+
+    /// The temperature (deg C) and bias (deg/s) of the last tick that
+    /// learned the bias.
+    pub fn last_learned(&self) -> Option<(f64, [f64; 3])> {
+        self.last_learned
+    }
+
+    /// The thermal slope's learning point of the last tick, once: (temp,
+    /// bias deg/s, weight s), at a standstill.
+    pub fn take_rest_point(&mut self) -> Option<(f64, [f64; 3], f64)> {
+        self.rest_point.take()
     }
 
     /// What every aid source did at the last update tick.
