@@ -120,3 +120,32 @@ fn the_replay_summary_names_the_rules_that_acted() {
     assert!(!line.contains("level_rate"), "{line}");
     assert_ne!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), "switching level_rate off changed nothing");
 }
+
+/// The replay summary says which aid sources fused and which the gate
+/// refused; a source whose rule is switched off does not run, and without a
+/// magnetometer there is no heading. `level_roll` (which runs only without
+/// a heading reference) is switched off by its ablation switch: the output
+/// changes.
+#[test]
+fn the_replay_summary_names_the_aid_sources_and_an_ablated_one_does_not_run() {
+    let road = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/road-40s.log");
+    let d = tempfile::tempdir().unwrap();
+    let aid_line = |err: &str| err.lines().find(|l| l.starts_with("aid sources (")).unwrap_or_else(|| panic!("{err}")).to_string();
+    let replay = |cfg: &str, name: &str| {
+        let c = d.path().join(format!("{name}.toml"));
+        std::fs::write(&c, cfg).unwrap();
+        let o = d.path().join(format!("{name}.log"));
+        let (ok, out, err) = run(&["replay", "--config", c.to_str().unwrap(), "--input", road, "--output", o.to_str().unwrap()]);
+        assert!(ok, "{out}{err}");
+        (aid_line(&(out + &err)), std::fs::read(&o).unwrap())
+    };
+    let (line, _) = replay("", "default");
+    for want in ["vehicle_constraint ", "level_rate ", "heading "] {
+        assert!(line.contains(want), "{want}: {line}");
+    }
+    let (line, nomag) = replay("[estimator]\nuse_magnetometer = false\n", "nomag");
+    assert!(!line.contains("heading") && line.contains("level_roll "), "{line}");
+    let (line, off) = replay("[estimator]\nuse_magnetometer = false\n[mekf]\nablate = [\"level_roll\"]\n", "off");
+    assert!(!line.contains("level_roll"), "{line}");
+    assert_ne!(nomag, off, "switching level_roll off changed nothing");
+}

@@ -169,6 +169,7 @@ fn long_gap_is_a_resync_not_an_integration() {
 }
 
 // the default filter (mekf)
+mod aid;
 mod mekf;
 
 /// A filter driven beyond its numbers (every `[ekf]` sigma 1e-300, which no
