@@ -142,7 +142,7 @@ const GRAVITY_TURN_DEG: f64 = 0.5;
 const GRAVITY_TURN_WINDOW_S: f64 = 10.0;
 /// 1-sigma of the vertical-speed bound (`max_vertical_speed`), m/s.
 const VERTICAL_BOUND_SIGMA: f64 = 0.5;
-/// A car's body cannot keep rolling or pitching (`level_rate_update`): its
+/// A car's body cannot keep rolling or pitching (`fuse_level_rate`): its
 /// rate about the horizontal, averaged over `LEVEL_WINDOW_S`, is zero within
 /// `LEVEL_RATE_SIGMA` (a grade or a suspension's change over the window:
 /// 3 deg in 3 s is a hard braking's dive), on windows turning less than
@@ -150,7 +150,7 @@ const VERTICAL_BOUND_SIGMA: f64 = 0.5;
 const LEVEL_WINDOW_S: f64 = 3.0;
 const LEVEL_RATE_SIGMA: f64 = 1.0 * D2R;
 const LEVEL_TURN_MAX: f64 = 3.0 * D2R;
-/// A car's roll, per level window, is zero within this (`level_roll_update`).
+/// A car's roll, per level window, is zero within this (`fuse_level_roll`).
 const LEVEL_ROLL_SIGMA: f64 = 3.0 * D2R;
 
 /// Which gain rows an update may move.
@@ -284,7 +284,7 @@ pub struct Mekf {
     f_lp: Option<GravityLp>,
     /// The attitude low-passed over `accel_tau_s` (per tick, turned with
     /// every correction): what turns a bias error into the low-passed
-    /// gravity's lag (`gravity_lp_update`).
+    /// gravity's lag (`fuse_free_gravity`).
     c_lag: Mat3,
     level: LevelWindow,
     /// The car's axes in the body frame, and the pull-aways that turn them

@@ -46,7 +46,7 @@ fn measurement_rows_match_finite_differences() {
                 assert!((fd - h[k]).abs() < 1e-4 * (1.0 + h[k].abs()), "yaw {yaw} velocity axis {axis} state {k}: {fd} vs {}", h[k]);
             }
         }
-        // the car's roll (`level_roll_update`), along its turned axes too
+        // the car's roll (`fuse_level_roll`), along its turned axes too
         if vehicle {
             let (r0, h) = m.car_roll_row().unwrap();
             for k in 0..N {

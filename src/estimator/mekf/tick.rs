@@ -144,7 +144,7 @@ impl Mekf {
     /// is the bias's, learned provisionally from a sigma brought down to
     /// `PROVISIONAL_BIAS_SIGMA` (the cut broad-27's 0.46 deg/s x bias had
     /// held its roll 1.3 deg off for the 100 s to its first rest), the
-    /// gravity's lag in the model (`gravity_lp_update`) and kept through
+    /// gravity's lag in the model (`fuse_free_gravity`) and kept through
     /// re-levellings (`relevel_free`).
     fn settle_free_tilt(&mut self) {
         if self.on(Rule::ProvisionalBias)
