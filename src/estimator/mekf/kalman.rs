@@ -187,7 +187,7 @@ impl Mekf {
             return AidStatus::NotApplicable(Why::Unobservable);
         }
         let nu = nu - hdx;
-        if self.scoring && gain.velocity {
+        if self.scoring && gain.scored {
             self.log_likelihood -= 0.5 * ((nu * nu / s).min(gate) + s.ln());
         }
         let ratio = nu * nu / (self.p.gate * s);

@@ -153,7 +153,8 @@ const LEVEL_TURN_MAX: f64 = 3.0 * D2R;
 /// A car's roll, per level window, is zero within this (`fuse_level_roll`).
 const LEVEL_ROLL_SIGMA: f64 = 3.0 * D2R;
 
-/// Which gain rows an update may move.
+/// Which gain rows an update may move (the velocity and the speed scale
+/// are always in the gain), and whether the power-on bank scores it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Gain {
     /// The tilt (dθ_x, dθ_y).
@@ -161,9 +162,12 @@ struct Gain {
     /// The heading (dθ_z).
     heading: bool,
     bias: bool,
-    /// A measurement of the velocity: scored for the power-on speed
-    /// hypotheses (`super::hypotheses`) while scoring.
-    velocity: bool,
+    /// Scored for the power-on speed hypotheses (`super::hypotheses`)
+    /// while scoring: only a measurement every copy of the bank makes
+    /// alike (the velocity constraints and the wheel speed), so that their
+    /// likelihoods compare the copies' predictions, not which measurements
+    /// each happened to make.
+    scored: bool,
 }
 
 /// Per-tick sums.

@@ -9,6 +9,7 @@
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Rule {
     Cruise,
+    Accelerating,
     VelocityAge,
     TurningAtSpeed,
     FieldTurned,
@@ -42,12 +43,18 @@ pub enum Rule {
 /// where it acts. In the enum's order, which is the ablation table's:
 /// `Rule::describe` finds a rule's row by its discriminant, and `Rule::ALL`
 /// is this column (checked at compile time below).
-const RULES: [(Rule, &str, &str, &str); 28] = [
+const RULES: [(Rule, &str, &str, &str); 29] = [
     (
         Rule::Cruise,
         "cruise",
         "a quiet period whose zero velocity the velocity state refuses (NIS against zero beyond stop_sigma^2) is a smooth cruise, not a stop",
         "mekf/tick.rs, context/velocity_belief.rs",
+    ),
+    (
+        Rule::Accelerating,
+        "accelerating",
+        "a cruise whose specific force the held tilt refuses as gravity (the bias read) is an acceleration: a moving tick, its rate not the bias",
+        "mekf/tick.rs",
     ),
     (
         Rule::VelocityAge,

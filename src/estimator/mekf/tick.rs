@@ -44,9 +44,8 @@ impl Mekf {
         let learns_in_motion = self.learns_in_motion() && (self.bias_known || self.tilt_settled);
         let learn_gravity = (a.quasi || learns_in_motion) && !a.suspect;
         let learn = !a.suspect;
-        if sit.still {
-            self.still_tick(&a, sit.at_rest, &mut o, &mut fl);
-        } else {
+        let accelerating = sit.still && self.still_tick(&a, sit.at_rest, &mut o, &mut fl);
+        if !sit.still || accelerating {
             self.refused_still = 0.0;
             self.moving_tick(&a, &omega, learn, learn_gravity, &mut o, &mut fl);
         }
@@ -169,14 +168,17 @@ impl Mekf {
     }
 
     /// The updates of a still tick (`still_updates`) and the re-level a
-    /// standstill's refused evidence may call for.
-    fn still_tick(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome, fl: &mut u16) {
+    /// standstill's refused evidence may call for. True when the tick
+    /// turned out to be a moving one (`accelerating`).
+    fn still_tick(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome, fl: &mut u16) -> bool {
         let t = a.t;
         if at_rest {
             *fl |= flags::STANDSTILL;
             self.counters.rest_s += t;
         }
-        self.still_updates(a, at_rest, o);
+        if self.still_updates(a, at_rest, o) {
+            return true;
+        }
         if o.refused {
             self.refused_still += t;
         } else {
@@ -203,6 +205,7 @@ impl Mekf {
             o.learned = true;
         }
         self.refusals.refused_s = 0.0;
+        false
     }
 
     /// The updates of a moving tick: the vehicle constraint or a free
@@ -223,7 +226,7 @@ impl Mekf {
         // horizontal, averaged, is its bias's (`fuse_level_rate`)
         if self.learns_level_rate() {
             self.inject();
-            let gain = Gain { tilt: true, heading: true, bias: true, velocity: false };
+            let gain = Gain { tilt: true, heading: true, bias: true, scored: false };
             self.fuse_level_rate(t, &a.s_c, &a.s_cg, gain);
         } else {
             self.level = LevelWindow::default();
@@ -251,7 +254,7 @@ impl Mekf {
     /// unit's gravity and bounded velocity; then a car's speed bounds.
     /// Returns (fused any, refused any) of the first.
     pub(in crate::estimator::mekf) fn velocity_updates(&mut self, omega: &[f64; 3], learn: bool, gate: f64) -> (bool, bool) {
-        let gain = Gain { tilt: true, heading: true, bias: learn, velocity: false };
+        let gain = Gain { tilt: true, heading: true, bias: learn, scored: false };
         let s = if self.vehicle {
             for aid in [Aid::FreeGravity, Aid::FreeVelocity] {
                 self.aid.set(aid, AidStatus::NotApplicable(Why::Vehicle));
@@ -331,8 +334,10 @@ impl Mekf {
 
     /// The updates of a still unit: at a standstill (not a smooth cruise)
     /// the velocity is zero, the gyro reads the bias (zero-rate update), the
-    /// specific force is gravity. Noise from the rest detector.
-    fn still_updates(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome) {
+    /// specific force is gravity. Noise from the rest detector. Returns
+    /// true for a cruise that turned out to accelerate: the tick is then a
+    /// moving one.
+    fn still_updates(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome) -> bool {
         let moving_only = [
             Aid::VehicleConstraint,
             Aid::FreeVelocity,
@@ -357,10 +362,29 @@ impl Mekf {
         } else {
             self.aid.set(Aid::ZeroVelocity, AidStatus::NotApplicable(Why::Cruising));
         }
+        // A car cruising, its bias read: its tilt is held by the gyro, and
+        // a specific force that tilt refuses as gravity is an acceleration
+        // (a smooth pull-away or easing off inside the rest band): the tick
+        // is a moving one, and its rate is not the bias (`accelerating`).
+        if !at_rest && self.vehicle && self.bias_known && self.on(Rule::Accelerating) {
+            let g = self.fuse_still_gravity(a, gate);
+            if g.refused() {
+                o.refused = true;
+                self.aid.set(Aid::ZeroRate, AidStatus::NotApplicable(Why::Moving));
+                self.counters.rules.note(Rule::Accelerating);
+                return true;
+            }
+            note(g, o);
+            let (u, read) = self.fuse_zero_rate(a, gate);
+            o.bias_read = read;
+            note(u, o);
+            return false;
+        }
         let (u, read) = self.fuse_zero_rate(a, gate);
         o.bias_read = read;
         note(u, o);
-        let u = self.fuse_still_gravity(a, at_rest, gate);
+        let u = self.fuse_still_gravity(a, gate);
         note(u, o);
+        false
     }
 }

@@ -16,7 +16,7 @@ impl Mekf {
     /// velocity again.
     pub(in crate::estimator::mekf) fn fuse_free_velocity(&mut self, omega: &[f64; 3], gain: Gain, gate: f64) -> Rows {
         let open = self.cov[TH + 2][TH + 2] > FREE_HEADING_SIGMA * FREE_HEADING_SIGMA;
-        let vgain = Gain { heading: gain.heading && !open, velocity: true, ..gain };
+        let vgain = Gain { heading: gain.heading && !open, scored: true, ..gain };
         let mut s = Rows::default();
         for i in 0..3 {
             let (nu, h) = self.body_velocity_row(i, omega);

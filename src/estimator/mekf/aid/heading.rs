@@ -83,7 +83,7 @@ impl Mekf {
         h[TH] = mn[0] * mn[2] / h2;
         h[TH + 1] = mn[1] * mn[2] / h2;
         h[TH + 2] = -1.0;
-        let u = self.update(&h, nu, self.p.yaw_var, Gain { tilt: false, heading: true, bias: learn, velocity: false }, gate);
+        let u = self.update(&h, nu, self.p.yaw_var, Gain { tilt: false, heading: true, bias: learn, scored: false }, gate);
         // an undisturbed field refused for long: the heading, not the field,
         // is wrong (it was set with a wrong tilt, or drifted with a wrong z
         // bias); open it to what the field says, never a lock-out

@@ -34,7 +34,7 @@ impl Mekf {
         let mut s = Rows::default();
         for i in [1, 2] {
             let (nu, h) = self.body_velocity_row(i, omega);
-            s.push(self.update(&h, -nu, self.p.nhc_var, Gain { velocity: true, ..gain }, gate));
+            s.push(self.update(&h, -nu, self.p.nhc_var, Gain { scored: true, ..gain }, gate));
         }
         self.aid.set(Aid::VehicleConstraint, s.status);
         s

@@ -10,7 +10,7 @@ impl Mekf {
     /// Returns the status and whether every axis was fused (the bias read).
     pub(in crate::estimator::mekf) fn fuse_zero_rate(&mut self, a: &Accum, gate: f64) -> (Rows, bool) {
         let n = a.n as f64;
-        let all = Gain { tilt: true, heading: true, bias: true, velocity: false };
+        let all = Gain { tilt: true, heading: true, bias: true, scored: false };
         let gvar = self.last_rest.map_or(self.p.zru_floor, |r| r.gyro_var / 3.0);
         let r_zru = (gvar / n).max(self.p.zru_floor);
         let mut read = 0;

@@ -9,7 +9,7 @@ impl Mekf {
     /// measurement every copy shares (scored, the copy that took a cruise
     /// for a stop gained nats from its own assumption).
     pub(in crate::estimator::mekf) fn fuse_zero_velocity(&mut self, gate: f64) -> Rows {
-        let all = Gain { tilt: true, heading: true, bias: true, velocity: false };
+        let all = Gain { tilt: true, heading: true, bias: true, scored: false };
         let mut s = Rows::default();
         for i in 0..3 {
             let mut h = [0.0; N];

@@ -149,7 +149,7 @@ mod tests {
             let mut m = car(u, 5.0);
             m.p.max_forward_speed = fwd;
             m.dx = [0.0; N];
-            m.fuse_forward_speed(&omega, Gain { tilt: true, heading: true, bias: false, velocity: true });
+            m.fuse_forward_speed(&omega, Gain { tilt: true, heading: true, bias: false, scored: true });
             // the source says what it did: held beyond the band, nothing inside it
             let s = m.aid.get(Aid::ForwardSpeed);
             let held = (fwd > 0.0 && u > fwd) || u < -m.p.max_reverse_speed;
