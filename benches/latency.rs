@@ -1,6 +1,7 @@
 //! Per-sample latency through the daemon's own code path, bus excluded:
 //! from the closing (AUX) input frame entering the pipeline to the last of
-//! the four output frames queued for the writer task (`daemon::BusSink`).
+//! the output frames (five: the four and `EST_AID`) queued for the writer
+//! task (`daemon::BusSink`).
 //! 1 M samples; prints p50 / p99 / p99.9 / max. Run: `cargo bench --bench latency`.
 
 mod support;
@@ -39,7 +40,7 @@ fn main() {
     let q = |x: f64| s[((n as f64 * x) as usize).min(n - 1)];
     let mean = lat.iter().map(|v| *v as f64).sum::<f64>() / n as f64;
     println!(
-        "latency closing frame -> 4 output frames queued, {n} samples: p50 {} ns, p99 {} ns, p99.9 {} ns, max {} ns, mean {:.0} ns",
+        "latency closing frame -> 5 output frames queued, {n} samples: p50 {} ns, p99 {} ns, p99.9 {} ns, max {} ns, mean {:.0} ns",
         q(0.5),
         q(0.99),
         q(0.999),

@@ -6,7 +6,7 @@
 //! | topic | schema | one message per |
 //! | --- | --- | --- |
 //! | `/tf` | `foxglove.FrameTransform` | estimate: `world` (ENU) -> `base_link` (FLU) |
-//! | `/gyrocomp/estimate` | `gyrocomp.Estimate` | estimate: attitude (NED/FRD), corrected rates, bias, temperature, mode, flags |
+//! | `/gyrocomp/estimate` | `gyrocomp.Estimate` | estimate: attitude (NED/FRD), corrected rates, bias, temperature, mode, flags, aid sources (`EST_AID`) |
 //! | `/can/rx` | `gyrocomp.CanFrame` | input frame pushed into the pipeline |
 //! | `/truth/estimate` | `gyrocomp.Attitude` | evaluated sample (`evaluate --input DIR --mcap`): the simulated truth |
 //! | `/truth/tf` | `foxglove.FrameTransform` | evaluated sample: `world` -> `base_link_truth` |
@@ -22,6 +22,7 @@
 
 use crate::adis::RawFrame;
 use crate::batches::Batches;
+use crate::estimator::mekf::Aid;
 use crate::estimator::Estimate;
 use crate::outfile::OutFile;
 use mcap::records::MessageHeader;
@@ -70,18 +71,29 @@ pub fn estimate_schema() -> String {
         .iter()
         .map(|(n, b)| format!(r#""{n}":{{"type":"integer","description":"bit {} of flags, 0 or 1"}}"#, b.trailing_zeros()))
         .collect();
+    let aid: Vec<String> = Aid::ALL
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            format!(r#""{}":{{"type":"integer","description":"bits {}-{} of aid_status: {}"}}"#, a.name(), 2 * i, 2 * i + 1, AID_CODES_TEXT)
+        })
+        .collect();
     format!(
         concat!(
             r#"{{"title":"gyrocomp.Estimate","description":"One gyrocomp estimate: attitude in NED (Z-Y-X Euler of the FRD body, deg), corrected rates and bias (FRD, deg/s), temperature (deg C), mode and status flags","type":"object","properties":{{"#,
             r#""timestamp":{},"t":{{"type":"number","description":"s since the first sample, by the sample counter"}},"cnt":{{"type":"integer","description":"DATA_CNT"}},"#,
             r#""roll":{{"type":"number","description":"deg"}},"pitch":{{"type":"number","description":"deg"}},"yaw":{{"type":"number","description":"deg, from north"}},"#,
             r#""rate":{},"bias":{},"temp":{{"type":"number","description":"deg C"}},"mode":{{"type":"integer","description":"0 fusion with bias learning, 1 aided, 2 gyro only"}},"#,
-            r#""accel_ratio":{{"type":"number","description":"|a| / g0"}},"flags":{{"type":"integer","description":"the EST_STATUS flag word"}},"flag":{{"type":"object","properties":{{{}}}}}}}}}"#
+            r#""accel_ratio":{{"type":"number","description":"|a| / g0"}},"flags":{{"type":"integer","description":"the EST_STATUS flag word"}},"flag":{{"type":"object","properties":{{{}}}}},"#,
+            r#""aid_status":{{"type":"integer","description":"the EST_AID status word: 2 bits per aid source of the default filter"}},"#,
+            r#""aid_worst_ratio":{{"type":"number","description":"the largest test ratio of the aid sources at the last update tick, as EST_AID's WorstRatio (0..655.35, saturating)"}},"#,
+            r#""aid":{{"type":"object","description":"what each aid source of the default filter did at the last update tick","properties":{{{}}}}}}}}}"#
         ),
         TIME,
         xyz("bias-corrected rate, FRD, deg/s"),
         xyz("gyro bias, FRD, deg/s"),
-        flags.join(",")
+        flags.join(","),
+        aid.join(",")
     )
 }
 
@@ -116,6 +128,9 @@ pub const FLAG_NAMES: [(&str, u16); 14] = {
         ("speed_aided", SPEED_AIDED),
     ]
 };
+
+/// The meaning of an `aid.<name>` code (the DBC's `VAL_`).
+const AID_CODES_TEXT: &str = "0 not applicable, 1 fused, 2 refused by the innovation gate";
 
 #[derive(Serialize)]
 struct Time {
@@ -181,6 +196,9 @@ struct EstimateMsg<'a> {
     accel_ratio: f32,
     flags: u16,
     flag: FlagBits<'a>,
+    aid_status: u32,
+    aid_worst_ratio: f32,
+    aid: AidCodes,
 }
 
 impl EstimateMsg<'_> {
@@ -200,6 +218,9 @@ impl EstimateMsg<'_> {
             accel_ratio: e.ratio as f32,
             flags: e.flags,
             flag: FlagBits(&e.flags),
+            aid_status: e.aid.status & crate::output::AID_MASK,
+            aid_worst_ratio: crate::output::ratio_sent(e.aid.worst_ratio) as f32,
+            aid: AidCodes(e.aid),
         }
     }
 }
@@ -212,6 +233,20 @@ impl Serialize for FlagBits<'_> {
         let mut m = s.serialize_map(Some(FLAG_NAMES.len()))?;
         for (n, b) in FLAG_NAMES {
             m.serialize_entry(n, &u8::from(self.0 & b != 0))?;
+        }
+        m.end()
+    }
+}
+
+/// Each aid source's 2-bit code, by name.
+struct AidCodes(crate::estimator::mekf::AidWord);
+
+impl Serialize for AidCodes {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut m = s.serialize_map(Some(Aid::ALL.len()))?;
+        for a in Aid::ALL {
+            m.serialize_entry(a.name(), &(self.0.code(a) as u8))?;
         }
         m.end()
     }
@@ -575,7 +610,8 @@ mod tests {
             temp: 25.5,
             flags: crate::estimator::flags::STANDSTILL | crate::estimator::flags::SUSPECT,
             ratio: 1.0,
-            aid: Default::default(),
+            // zero_velocity fused, zero_rate refused; a ratio past WorstRatio's range
+            aid: crate::estimator::mekf::AidWord { status: 0b1001, worst_ratio: 1e9 },
         }
     }
 
@@ -620,6 +656,11 @@ mod tests {
         let keys = |o: &serde_json::Value| o.as_object().unwrap().keys().cloned().collect::<Vec<_>>();
         assert_eq!(keys(&v), keys(&schema["properties"]));
         assert_eq!(keys(&v["flag"]), keys(&schema["properties"]["flag"]["properties"]));
+        assert!(s.contains(r#""aid_status":9,"aid_worst_ratio":655.35,"aid":{"zero_velocity":1,"zero_rate":2,"still_gravity":0,"#), "{s}");
+        let mut names: Vec<String> = Aid::ALL.iter().map(|a| a.name().to_string()).collect();
+        names.sort();
+        assert_eq!(keys(&v["aid"]), names);
+        assert_eq!(keys(&v["aid"]), keys(&schema["properties"]["aid"]["properties"]));
 
         let data = [1u8, 2, 0xff];
         let c = serde_json::to_string(&CanMsg {

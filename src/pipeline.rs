@@ -15,13 +15,14 @@
 use crate::adis::{Assembler, Drop, InputCounters, Push, RawFrame};
 use crate::config::{Config, OutputConfig};
 use crate::estimator::{Estimate, Estimator};
-use crate::output::{encode, OutFrame, StatusCounters};
+use crate::output::{encode, Frames, StatusCounters};
 use crate::speed::{SpeedCounts, SpeedDecoder};
 
 /// Receives what the pipeline produces.
 pub trait Sink {
-    /// One estimate and its four output frames (stamped `est.t_us`).
-    fn output(&mut self, est: &Estimate, frames: &[OutFrame; 4]);
+    /// One estimate and its output frames (stamped `est.t_us`): the four of
+    /// every sample, and `EST_AID` unless `[output] aid_frame = false`.
+    fn output(&mut self, est: &Estimate, frames: &Frames);
     /// A frame or sample was dropped (already counted in the pipeline).
     fn dropped(&mut self, _t_us: u64, _cause: Drop) {}
     /// Whether [`Sink::input`] is to be called (`replay --mcap`); asked once,
@@ -37,7 +38,7 @@ pub trait Sink {
 /// A sink that keeps nothing (benchmarks, warm-ups).
 pub struct NullSink;
 impl Sink for NullSink {
-    fn output(&mut self, _: &Estimate, _: &[OutFrame; 4]) {}
+    fn output(&mut self, _: &Estimate, _: &Frames) {}
 }
 
 pub struct Pipeline {

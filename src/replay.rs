@@ -13,7 +13,7 @@ use crate::config::Config;
 use crate::estimator::Estimate;
 use crate::mcapout::{McapError, McapFile, McapSink};
 use crate::outfile::OutFile;
-use crate::output::OutFrame;
+use crate::output::Frames;
 use crate::pipeline::{Pipeline, Sink};
 use serde::Serialize;
 use std::fs::File;
@@ -103,12 +103,12 @@ pub struct ReplaySink<'a, W: Write, C: Write> {
 
 impl<W: Write, C: Write> Sink for ReplaySink<'_, W, C> {
     #[inline]
-    fn output(&mut self, est: &Estimate, frames: &[OutFrame; 4]) {
+    fn output(&mut self, est: &Estimate, frames: &Frames) {
         if self.err.is_some() {
             return;
         }
         if let Some(log) = self.log.as_deref_mut() {
-            for f in frames {
+            for f in frames.iter() {
                 if let Err(e) = log.frame(est.t_us, f.id, &f.data) {
                     self.err = Some(e);
                     return;
@@ -214,7 +214,7 @@ fn parse_into<R: Read>(input: R, mut batches: Batches<Item>) -> io::Result<()> {
 
 /// What the pipeline stage hands to the sink stage.
 enum Out {
-    Output(Estimate, [OutFrame; 4]),
+    Output(Estimate, Frames),
     Dropped(u64, crate::adis::Drop),
     /// An input frame (only when the sink wants them): at most 8 payload bytes.
     Input {
@@ -230,7 +230,7 @@ enum Out {
 
 /// Collects the pipeline's output into batches for the sink thread.
 impl Sink for Batches<Out> {
-    fn output(&mut self, est: &Estimate, frames: &[OutFrame; 4]) {
+    fn output(&mut self, est: &Estimate, frames: &Frames) {
         self.push(Out::Output(*est, *frames));
     }
     fn dropped(&mut self, t_us: u64, cause: crate::adis::Drop) {

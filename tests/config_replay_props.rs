@@ -7,7 +7,7 @@
 
 use gyrocomp::config::Config;
 use gyrocomp::estimator::Estimate;
-use gyrocomp::output::OutFrame;
+use gyrocomp::output::Frames;
 use gyrocomp::pipeline::{Pipeline, Sink};
 use proptest::prelude::*;
 
@@ -76,7 +76,7 @@ fn config_text(mode: usize, keys: &[(usize, u8, f64)], p1: [f64; 3], p2: [f64; 3
 
 struct Check(usize, Option<String>);
 impl Sink for Check {
-    fn output(&mut self, e: &Estimate, _: &[OutFrame; 4]) {
+    fn output(&mut self, e: &Estimate, _: &Frames) {
         self.0 += 1;
         let v = [e.roll, e.pitch, e.yaw, e.rate[0], e.rate[1], e.rate[2], e.bias[0], e.bias[1], e.bias[2], e.t];
         if self.1.is_none() && !v.iter().all(|x| x.is_finite()) {

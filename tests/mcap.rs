@@ -1,8 +1,9 @@
 //! `gyrocomp replay --mcap` as a user runs it on the README's bundled log, the
 //! recording read back by the python `mcap` reader (tests/mcap_check.py):
 //! channels, schemas, one message per sample (one per input frame on
-//! /can/rx), monotonic times, unit quaternions; the same bytes twice; the
-//! other outputs the same bytes with or without it; bad paths refused.
+//! /can/rx), monotonic times, unit quaternions, the aid sources by name; the
+//! same bytes twice; the other outputs the same bytes with or without it; bad
+//! paths refused.
 
 mod common;
 use std::path::Path;
@@ -72,6 +73,9 @@ fn replay_mcap_reads_back_in_python_and_is_deterministic() {
     let so = String::from_utf8_lossy(&py.stdout);
     assert!(py.status.success(), "{so}{}", String::from_utf8_lossy(&py.stderr));
     assert!(so.contains(&format!("mcap ok: 3 channels, {samples} samples, {frames} CAN frames")), "{so}");
+    // the default filter's aid sources by name: some fused at most estimates
+    let fused: u64 = so.split("an aid source fused at ").nth(1).and_then(|r| r.split(',').next()).and_then(|n| n.parse().ok()).unwrap_or(0);
+    assert!(fused > samples / 2, "{so}");
 }
 
 #[test]

@@ -3,11 +3,12 @@
 python `mcap` reader (pip install mcap) and check it: the channels, their
 schemas and encodings, the message counts, per-channel monotonic log times
 equal to the messages' own timestamps, consecutive sequence numbers, unit
-quaternions, finite numbers.
+quaternions, finite numbers; on gyrocomp.Estimate the aid sources as the
+schema lists them, each 0, 1 or 2 and together the aid_status word.
 
 usage: mcap_check.py FILE SAMPLES CAN_FRAMES [TOPIC=SCHEMA ...]
-Prints one line "mcap ok: ..." and exits 0, or names the first problem and
-exits 1.
+Prints one line "mcap ok: ..." (with how many estimates had an aid source
+fused and refused) and exits 0, or names the first problem and exits 1.
 """
 import json
 import math
@@ -57,6 +58,12 @@ def main():
         for c in summ.channels.values():
             if c.message_encoding != "json":
                 fail(f"{c.topic}: message encoding {c.message_encoding}")
+        # the aid sources in the schema's order: source i at bits 2i..2i+1
+        aid_names = None
+        for s in summ.schemas.values():
+            if s.name == "gyrocomp.Estimate":
+                aid_names = list(json.loads(s.data)["properties"]["aid"]["properties"])
+        aid_fused = aid_refused = 0
         counts, last, seq = {}, {}, {}
         for schema, ch, m in r.iter_messages(log_time_order=False):
             t = ch.topic
@@ -83,6 +90,19 @@ def main():
                     fail(f"{t}: frames {d['parent_frame_id']} -> {d['child_frame_id']}")
             if schema.name == "gyrocomp.CanFrame" and len(d["data"]) != 2 * d["len"]:
                 fail(f"{t}: len {d['len']} with {len(d['data'])} bytes")
+            if schema.name == "gyrocomp.Estimate":
+                aid = d["aid"]
+                if list(aid) != aid_names:
+                    fail(f"{t}: aid sources {list(aid)}, the schema's {aid_names}")
+                if any(v not in (0, 1, 2) for v in aid.values()):
+                    fail(f"{t}: aid codes {aid} at {m.log_time}")
+                word = sum(aid[n] << (2 * i) for i, n in enumerate(aid_names))
+                if word != d["aid_status"]:
+                    fail(f"{t}: aid_status {d['aid_status']} but the sources say {word} at {m.log_time}")
+                if not 0.0 <= d["aid_worst_ratio"] <= 655.35:
+                    fail(f"{t}: aid_worst_ratio {d['aid_worst_ratio']} at {m.log_time}")
+                aid_fused += any(v == 1 for v in aid.values())
+                aid_refused += any(v == 2 for v in aid.values())
         for t in want:
             n = counts.get(t, 0)
             expect = can_frames if t == "/can/rx" else samples
@@ -91,7 +111,8 @@ def main():
         st = summ.statistics
         if st.message_count != sum(counts.values()):
             fail(f"statistics say {st.message_count} messages, read {sum(counts.values())}")
-    print(f"mcap ok: {len(want)} channels, {samples} samples, {can_frames} CAN frames")
+    print(f"mcap ok: {len(want)} channels, {samples} samples, {can_frames} CAN frames; "
+          f"an aid source fused at {aid_fused}, refused at {aid_refused} estimates")
 
 
 if __name__ == "__main__":

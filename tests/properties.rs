@@ -3,6 +3,7 @@
 use gyrocomp::adis::{builtin_profile, Assembler, InputIds, Push, RawFrame, RawSample};
 use gyrocomp::config::OutputConfig;
 use gyrocomp::estimator::ekf::{Ekf, Learn};
+use gyrocomp::estimator::mekf::AidWord;
 use gyrocomp::estimator::Estimate;
 use gyrocomp::output::{decode, encode, StatusCounters};
 use nalgebra::Vector3;
@@ -61,9 +62,10 @@ proptest! {
         att in (-180.0f64..180.0, -89.0f64..89.0, -180.0f64..180.0),
         bias in prop::array::uniform3(-10.0f64..10.0),
         temp in -40.0f64..120.0, mode in 0u8..3, fl in 0u16..0x0400, cnt in any::<u16>(),
-        errors in any::<u64>(), lost in any::<u64>())
+        errors in any::<u64>(), lost in any::<u64>(), aid in (0u32..1 << 24, 0.0f64..655.0))
     {
-        let e = Estimate { cnt, rate, roll: att.0, pitch: att.1, yaw: att.2, bias, temp, mode, flags: fl, ..Default::default() };
+        let aid = AidWord { status: aid.0, worst_ratio: aid.1 };
+        let e = Estimate { cnt, rate, roll: att.0, pitch: att.1, yaw: att.2, bias, temp, mode, flags: fl, aid, ..Default::default() };
         let f = encode(&e, &StatusCounters { errors, lost }, &OutputConfig::default(), 0);
         let d = decode(&f);
         for i in 0..3 {
@@ -76,6 +78,9 @@ proptest! {
         prop_assert!((d.temp - temp).abs() <= 0.005 + 1e-9);
         prop_assert_eq!((d.mode, d.flags, d.cnt), (mode, fl, cnt));
         prop_assert_eq!((d.errors as u64, d.lost as u64), (errors & 0xFF, lost & 0xFF));
+        let a = d.aid.expect("EST_AID sent by default");
+        prop_assert_eq!(a.status, aid.status);
+        prop_assert!((a.worst_ratio - aid.worst_ratio).abs() <= 0.005 + 1e-9);
     }
 
     #[test]

@@ -27,10 +27,11 @@ fn replay_is_deterministic_and_learns_the_bias() {
     assert!(o2.status.success());
     assert_eq!(a, std::fs::read(d.path().join("out.log")).unwrap(), "output log differs between runs");
     assert_eq!(csv_a, std::fs::read(d.path().join("est.csv")).unwrap(), "csv differs between runs");
-    // 4 output frames per sample, stamped with the closing (AUX) frame's time.
+    // 5 output frames per sample (EST_AID last), stamped with the closing (AUX) frame's time.
     let text = String::from_utf8(a).unwrap();
     let lines: Vec<&str> = text.lines().collect();
-    assert_eq!(lines.len(), 4 * 204 * 40);
+    assert_eq!(lines.len(), 5 * 204 * 40);
+    assert!(lines[4].starts_with("(1700000000.000030) can0 114#"), "{}", lines[4]);
     assert!(lines[0].starts_with("(1700000000.000030) can0 110#"), "{}", lines[0]);
     // The summary names samples and modes.
     let err = String::from_utf8_lossy(&o1.stderr);
@@ -239,5 +240,105 @@ fn threaded_replay_writes_the_same_bytes_as_single_threaded() {
     assert_eq!(asum, bsum);
     assert_eq!(ac, bc);
     assert!(a == b, "output logs differ");
-    assert_eq!(a.iter().filter(|&&c| c == b'\n').count(), 4 * 204 * 120);
+    assert_eq!(a.iter().filter(|&&c| c == b'\n').count(), 5 * 204 * 120);
+}
+
+/// (id, payload) of every frame of a candump log, in order.
+fn out_frames(p: &std::path::Path) -> Vec<(u32, [u8; 8])> {
+    let text = std::fs::read_to_string(p).unwrap();
+    text.lines()
+        .map(|l| {
+            let f = gyrocomp::candump::parse_line(l.as_bytes()).unwrap_or_else(|e| panic!("{}: {e}: {l}", p.display()));
+            (f.id, f.payload().try_into().unwrap())
+        })
+        .collect()
+}
+
+/// `[output] aid_frame = false`: four frames a sample, the very bytes of the
+/// first four of the five sent by default; `aid_id` moves EST_AID.
+#[test]
+fn est_aid_can_be_switched_off_or_moved_and_the_other_frames_stay_as_they_were() {
+    let d = tempfile::tempdir().unwrap();
+    let input = d.path().join("in.log");
+    std::fs::write(&input, gentle_log(204 * 10, [0.3, -0.2, 0.25], 1_700_000_000_000_000)).unwrap();
+    let run = |cfg_text: &str| {
+        let cfg = d.path().join("c.toml");
+        std::fs::write(&cfg, cfg_text).unwrap();
+        let o = replay(d.path(), &input, &["--config", cfg.to_str().unwrap()]);
+        assert!(o.status.success(), "{cfg_text}: {}", String::from_utf8_lossy(&o.stderr));
+        out_frames(&d.path().join("out.log"))
+    };
+    let five = run("");
+    let four = run("[output]\naid_frame = false\n");
+    let moved = run("[output]\naid_id = 0x120\n");
+    assert_eq!(five.len(), 5 * 2040);
+    assert_eq!(four.len(), 4 * 2040);
+    let ids = |f: &[(u32, [u8; 8])]| f.iter().map(|x| x.0).collect::<Vec<_>>();
+    for k in 0..2040 {
+        assert_eq!(ids(&five[5 * k..5 * k + 5]), [0x110, 0x111, 0x112, 0x113, 0x114], "sample {k}");
+        assert_eq!(four[4 * k..4 * k + 4], five[5 * k..5 * k + 4], "sample {k}: the four frames changed with aid_frame = false");
+        assert_eq!(moved[5 * k + 4], (0x120, five[5 * k + 4].1), "sample {k}: EST_AID at aid_id");
+    }
+}
+
+/// A simulated city drive that starts parked (the truth's speed 0 for its
+/// first 6.4 s): replayed, its EST_AID frames say the zero velocity was fused
+/// at the standstill, and not while moving; the heading is fused with the
+/// magnetometer, and not applicable at every sample of a run without it.
+#[test]
+fn est_aid_says_zero_velocity_fused_at_the_standstill_and_heading_only_with_the_magnetometer() {
+    use gyrocomp::estimator::mekf::Aid;
+    use gyrocomp::output::decode_aid;
+    let d = tempfile::tempdir().unwrap();
+    let sim = d.path().join("sim");
+    let o = Command::new(bin())
+        .args(["simulate", "--scenario", "urban", "--seed", "1", "--duration", "60", "--out"])
+        .arg(&sim)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let speed = gyrocomp::sim::read_vehicle_speed(&sim.join("vehicle.csv")).unwrap();
+    let rate = 204.8;
+    let sim_cfg = std::fs::read_to_string(sim.join("config.toml")).unwrap();
+    // per sample: the codes of zero_velocity and heading, as the EST_AID frames say
+    let codes = |cfg_text: String| -> Vec<(u32, u32)> {
+        let cfg = d.path().join("c.toml");
+        std::fs::write(&cfg, cfg_text).unwrap();
+        let o = replay(d.path(), &sim.join("imu.log"), &["--config", cfg.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let f = out_frames(&d.path().join("out.log"));
+        assert_eq!(f.len(), 5 * speed.len(), "five frames for each of the {} samples", speed.len());
+        f.chunks(5)
+            .map(|s| {
+                assert_eq!((s[3].0, s[4].0), (0x113, 0x114));
+                let (w, cnt) = decode_aid(&s[4].1);
+                assert_eq!(cnt, u16::from_le_bytes([s[3].1[4], s[3].1[5]]), "EST_AID's DataCnt is EST_STATUS's");
+                (w.code(Aid::ZeroVelocity), w.code(Aid::Heading))
+            })
+            .collect()
+    };
+    // the parked start: from 2.5 s (the rest detector's 1 s and its filter
+    // settled) to the end of the stop
+    let stop_end = speed.iter().position(|v| *v != 0.0).unwrap();
+    assert!(stop_end as f64 / rate > 6.0, "the drive starts parked for {} s", stop_end as f64 / rate);
+    let at_rest = (2.5 * rate) as usize..stop_end;
+    let moving: Vec<usize> = (0..speed.len()).filter(|k| speed[*k].abs() > 1.0).collect();
+    assert!(moving.len() as f64 / rate > 40.0, "{} s moving", moving.len() as f64 / rate);
+
+    for (what, cfg_text) in
+        [("magnetometer", sim_cfg.clone()), ("no magnetometer", format!("{sim_cfg}\n[estimator]\nuse_magnetometer = false\n"))]
+    {
+        let c = codes(cfg_text);
+        let zv_rest = at_rest.clone().filter(|k| c[*k].0 == 1).count();
+        assert_eq!(zv_rest, at_rest.len(), "{what}: zero_velocity fused at {zv_rest} of {} standstill samples", at_rest.len());
+        let zv_moving = moving.iter().filter(|k| c[**k].0 != 0).count();
+        assert_eq!(zv_moving, 0, "{what}: zero_velocity applicable at {zv_moving} samples moving");
+        let heading_fused = c.iter().filter(|x| x.1 == 1).count();
+        if what == "magnetometer" {
+            assert!(heading_fused > c.len() / 2, "heading fused at {heading_fused} of {} samples", c.len());
+        } else {
+            let heading_any = c.iter().filter(|x| x.1 != 0).count();
+            assert_eq!(heading_any, 0, "no magnetometer: heading fused or refused at {heading_any} samples");
+        }
+    }
 }

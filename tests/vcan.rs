@@ -74,10 +74,11 @@ i=0; until grep -q "bus open" daemon.err 2>/dev/null; do sleep 0.1; i=$((i+1)); 
 "#;
 
 /// A shell function: `capture OUT IN` records the daemon's output frames
-/// (0x110..0x113) to OUT while IN is played onto the bus.
+/// (0x110..0x114: the mask passes 0x110..0x117) to OUT while IN is played
+/// onto the bus.
 const CAPTURE: &str = r#"
 capture() {
-  candump -r 8388608 -L vcan0,110:7FC > "$1" &
+  candump -r 8388608 -L vcan0,110:7F8 > "$1" &
   C=$!
   sleep 0.5
   canplayer -I "$2" vcan0=vcan0
@@ -182,7 +183,7 @@ gyrocomp run --config live.toml 2> daemon.err &
 D=$!
 {WAIT_READY}
 capture live1.log clean.log
-candump -r 8388608 -L vcan0,110:7FC > live2.log &
+candump -r 8388608 -L vcan0,110:7F8 > live2.log &
 C=$!
 sleep 0.5
 canplayer -I faults.log vcan0=vcan0
@@ -266,16 +267,16 @@ cat daemon.err
         assert!(summary.contains(s), "{s} not in\n{summary}");
     }
     // ... and the daemon's last status frame carries them (ErrCnt, LostCnt)
-    let last = &want2.last().unwrap().1;
+    let last = &want2.iter().rev().find(|f| f.0 == 0x113).unwrap().1;
     assert_eq!((last[6], last[7]), (8, 53), "ErrCnt (5 wrong DLC + 3 checksum) / LostCnt in EST_STATUS");
 
     // After the link bounce, publishing resumed without a restart; writes
     // while it was down were dropped and counted, not waited on.
     let live3: Vec<_> = frames(&l3).into_iter().filter(|f| !is_silent(f)).collect();
-    assert_eq!(live3.len(), 4 * 204 * 2, "frames after the link bounce\n{daemon_err}");
+    assert_eq!(live3.len(), 5 * 204 * 2, "frames after the link bounce\n{daemon_err}");
     // After the interface was deleted and created again: reopened, resumed.
     let live4: Vec<_> = frames(&l4).into_iter().filter(|f| !is_silent(f)).collect();
-    assert_eq!(live4.len(), 4 * 204 * 2, "frames after the interface was recreated\n{daemon_err}");
+    assert_eq!(live4.len(), 5 * 204 * 2, "frames after the interface was recreated\n{daemon_err}");
     assert!(daemon_err.contains("reopening"), "{daemon_err}");
     assert!(daemon_err.matches("bus open").count() >= 2, "{daemon_err}");
     assert!(daemon_err.contains("bus silent"), "{daemon_err}");

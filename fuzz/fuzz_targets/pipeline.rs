@@ -5,7 +5,7 @@
 use gyrocomp::adis::RawFrame;
 use gyrocomp::config::Config;
 use gyrocomp::estimator::Estimate;
-use gyrocomp::output::OutFrame;
+use gyrocomp::output::Frames;
 use gyrocomp::pipeline::{Pipeline, Sink};
 use libfuzzer_sys::fuzz_target;
 
@@ -13,7 +13,7 @@ mod frames;
 
 struct Check(u64);
 impl Sink for Check {
-    fn output(&mut self, e: &Estimate, _: &[OutFrame; 4]) {
+    fn output(&mut self, e: &Estimate, _: &Frames) {
         self.0 += 1;
         let all = [e.roll, e.pitch, e.yaw, e.rate[0], e.rate[1], e.rate[2], e.bias[0], e.bias[1], e.bias[2], e.t];
         assert!(all.iter().all(|v| v.is_finite()), "non-finite estimate {e:?}");

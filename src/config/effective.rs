@@ -85,7 +85,9 @@ mod tests {
         }
         let c = Config::parse("[input.ids]\naux = 0x7FF\n[output]\nstatus_id = 0x20\n", "t").unwrap();
         let text = c.to_toml();
-        for want in ["gyro = 0x100\n", "aux = 0x7FF\n", "rate_id = 0x110\n", "status_id = 0x020\n"] {
+        for want in
+            ["gyro = 0x100\n", "aux = 0x7FF\n", "rate_id = 0x110\n", "status_id = 0x020\n", "aid_id = 0x114\n", "aid_frame = true\n"]
+        {
             assert!(text.contains(want), "{want} missing:\n{text}");
         }
         assert_eq!(Config::parse(&text, "printed").unwrap(), c.effective());

@@ -87,14 +87,14 @@ impl Config {
     }
 
     /// Load the DBC of `[speed]` (when configured) and check that its
-    /// message is not one of the IMU's or gyrocomp's own frames.
+    /// message is not one of the IMU's or gyrocomp's own frames (those sent:
+    /// `aid_id` only with `aid_frame` on).
     pub fn check_speed_source(&self) -> Result<(), (String, String)> {
         let Some(dec) = crate::speed::load(self).map_err(|e| ("speed.dbc".to_string(), e.to_string()))? else {
             return Ok(());
         };
         let (id, ext) = dec.id();
-        let o = &self.output;
-        if !ext && (self.input.ids.all().contains(&id) || [o.rate_id, o.attitude_id, o.bias_id, o.status_id].contains(&id)) {
+        if !ext && (self.input.ids.all().contains(&id) || self.output.sent().any(|(_, o)| o == id)) {
             return Err((
                 "speed.message".into(),
                 format!("{} has CAN ID {id:#x}, which is an IMU input or a gyrocomp output ID", dec.message()),

@@ -535,7 +535,7 @@ impl Default for RestConfig {
     }
 }
 
-/// Output frame IDs (the DBC describes the defaults).
+/// Output frame IDs (the DBC describes the defaults) and whether `EST_AID` is sent.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct OutputConfig {
@@ -543,11 +543,35 @@ pub struct OutputConfig {
     pub attitude_id: u32,
     pub bias_id: u32,
     pub status_id: u32,
+    /// `EST_AID`: which aid sources of the default filter were fused or refused.
+    pub aid_id: u32,
+    /// Send `EST_AID`, the fifth frame of a sample; false: four frames a
+    /// sample (a bus with no room for it), and `aid_id` is not used.
+    pub aid_frame: bool,
 }
 
 impl Default for OutputConfig {
     fn default() -> Self {
-        OutputConfig { rate_id: 0x110, attitude_id: 0x111, bias_id: 0x112, status_id: 0x113 }
+        OutputConfig { rate_id: 0x110, attitude_id: 0x111, bias_id: 0x112, status_id: 0x113, aid_id: 0x114, aid_frame: true }
+    }
+}
+
+impl OutputConfig {
+    /// Every output ID with its key, `aid_id` included whether or not it is sent.
+    pub fn keyed_ids(&self) -> [(&'static str, u32); 5] {
+        [
+            ("output.rate_id", self.rate_id),
+            ("output.attitude_id", self.attitude_id),
+            ("output.bias_id", self.bias_id),
+            ("output.status_id", self.status_id),
+            ("output.aid_id", self.aid_id),
+        ]
+    }
+
+    /// The IDs of the frames sent, with their keys: the four of every
+    /// sample, and `aid_id` when `aid_frame` is on.
+    pub fn sent(&self) -> impl Iterator<Item = (&'static str, u32)> {
+        self.keyed_ids().into_iter().take(if self.aid_frame { 5 } else { 4 })
     }
 }
 

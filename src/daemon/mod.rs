@@ -14,7 +14,7 @@ pub mod state;
 use crate::adis::{Drop, RawFrame};
 use crate::config::Config;
 use crate::estimator::{flags, Estimate};
-use crate::output::{encode, OutFrame, StatusCounters};
+use crate::output::{encode, Frames, OutFrame, StatusCounters};
 use crate::pipeline::{Pipeline, Sink};
 use anyhow::Context;
 use notify::Notifier;
@@ -108,10 +108,10 @@ fn can_frame(f: &OutFrame) -> Option<CanFrame> {
 }
 
 impl Sink for BusSink<'_> {
-    fn output(&mut self, est: &Estimate, frames: &[OutFrame; 4]) {
+    fn output(&mut self, est: &Estimate, frames: &Frames) {
         self.last = Some(*est);
         self.samples += 1;
-        for f in frames {
+        for f in frames.iter() {
             self.queue(f);
         }
     }
@@ -424,7 +424,7 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
                             silent_status_at = now;
                             if let Some(est) = sink.last {
                                 let frames = encode(&est, &StatusCounters::from(pipe.counters()), &cfg.output, flags::BUS_SILENT);
-                                sink.queue(&frames[3]);
+                                sink.queue(&frames[crate::output::STATUS]);
                             }
                         }
                         // Idle is not stalled: the loop is alive, say so.
@@ -545,14 +545,15 @@ mod tests {
 
     #[test]
     fn full_output_queue_drops_and_counts_without_blocking() {
-        let (tx, _rx) = mpsc::channel::<CanFrame>(4);
-        let shell = ShellCounters::default();
-        let mut sink = BusSink::new(&tx, &shell);
         let est = Estimate::default();
         let frames = encode(&est, &StatusCounters::default(), &crate::config::OutputConfig::default(), 0);
+        assert_eq!(frames.len(), 5, "four frames and EST_AID");
+        let (tx, _rx) = mpsc::channel::<CanFrame>(frames.len());
+        let shell = ShellCounters::default();
+        let mut sink = BusSink::new(&tx, &shell);
         sink.output(&est, &frames); // fills the queue
-        sink.output(&est, &frames); // nothing reads: all four dropped
-        assert_eq!(shell.tx_dropped.load(Ordering::Relaxed), 4);
+        sink.output(&est, &frames); // nothing reads: all five dropped
+        assert_eq!(shell.tx_dropped.load(Ordering::Relaxed), 5);
         assert_eq!(sink.samples, 2);
     }
 }

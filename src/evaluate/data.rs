@@ -5,7 +5,7 @@
 use crate::adis::{Assembler, Push, RawFrame, Sample};
 use crate::config::Config;
 use crate::estimator::Estimate;
-use crate::output::OutFrame;
+use crate::output::Frames;
 use crate::pipeline::{Pipeline, Sink};
 use crate::replay::{replay_files, ReplayFiles};
 use crate::sim::model::SensorModel;
@@ -166,7 +166,7 @@ impl RunData {
             Source::Frames(fr, dbc) => {
                 struct Keep<'a>(&'a mut Vec<Estimate>);
                 impl Sink for Keep<'_> {
-                    fn output(&mut self, e: &Estimate, _: &[OutFrame; 4]) {
+                    fn output(&mut self, e: &Estimate, _: &Frames) {
                         self.0.push(*e);
                     }
                 }

@@ -139,7 +139,7 @@ pub type Ours = (Vec<[f64; 3]>, Vec<u8>, bool);
 pub fn run_ours_log<R: std::io::Read>(log: R, cfg: &Config, name: &str) -> Result<Ours, String> {
     struct Keep(Vec<[f64; 3]>, Vec<u8>);
     impl crate::pipeline::Sink for Keep {
-        fn output(&mut self, e: &crate::estimator::Estimate, _: &[crate::output::OutFrame; 4]) {
+        fn output(&mut self, e: &crate::estimator::Estimate, _: &crate::output::Frames) {
             self.0.push([e.roll, e.pitch, e.yaw]);
             self.1.push(e.mode);
         }

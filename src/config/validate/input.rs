@@ -54,14 +54,19 @@ pub(super) fn can_output_daemon(c: &Config) -> Check {
     }
     let ids = c.input.ids.all();
     let o = &c.output;
-    let oids = [o.rate_id, o.attitude_id, o.bias_id, o.status_id];
-    for (k, v) in ["output.rate_id", "output.attitude_id", "output.bias_id", "output.status_id"].iter().zip(oids) {
+    for (k, v) in o.keyed_ids() {
         id(k, v)?;
+    }
+    // the IDs sent (aid_id only with aid_frame on) differ from the input IDs
+    // and from each other; a clash is named at the later key
+    for (i, (k, v)) in o.sent().enumerate() {
         if ids.contains(&v) {
             return err(k, format!("{v:#x} is also an input ID"));
         }
+        if let Some((other, _)) = o.sent().take(i).find(|(_, w)| *w == v) {
+            return err(k, format!("{v:#x} is also {other}: the output IDs must differ"));
+        }
     }
-    distinct("output", "four output IDs", &oids)?;
     let d = &c.daemon;
     within("daemon.save_every_s", d.save_every_s, 0.1, 86_400.0, "s")?;
     within("daemon.silent_after_s", d.silent_after_s, 0.01, 3600.0, "s")

@@ -37,6 +37,28 @@ fn refuses_bad_values_naming_the_key() {
     assert!(bad("[output]\nrate_id = 0x100").contains("output.rate_id"));
 }
 
+#[test]
+fn aid_id_is_checked_like_the_other_output_ids_while_it_is_sent() {
+    // a clash is named at the later key, with the key it clashes with
+    let e = bad("[output]\naid_id = 0x113\n");
+    assert!(e.contains("line 2, column 1: output.aid_id: 0x113 is also output.status_id: the output IDs must differ"), "{e}");
+    let e = bad("[output]\nbias_id = 0x110\n");
+    assert!(e.contains("output.bias_id: 0x110 is also output.rate_id"), "{e}");
+    // another ID moved onto the default aid_id: the default is named as such
+    let e = bad("[output]\nrate_id = 0x114\n");
+    assert!(e.contains("output.aid_id (not in the file: its default): 0x114 is also output.rate_id"), "{e}");
+    let e = bad("[output]\naid_id = 0x103\n");
+    assert!(e.contains("output.aid_id: 0x103 is also an input ID"), "{e}");
+    let e = bad("[output]\naid_id = 0x800\n");
+    assert!(e.contains("output.aid_id: must be an 11-bit CAN ID"), "{e}");
+    // switched off, EST_AID is not sent: its ID clashes with nothing, but is still an ID
+    let c = Config::parse("[output]\naid_frame = false\nrate_id = 0x114\n", "t").unwrap();
+    assert!(!c.output.aid_frame && c.output.sent().all(|(k, _)| k != "output.aid_id"));
+    assert!(bad("[output]\naid_frame = false\naid_id = 0x800\n").contains("output.aid_id: must be an 11-bit CAN ID"));
+    let e = bad("[output]\naid_frame = 1\n");
+    assert!(e.contains("line 2, column 13") && e.contains("expected true or false"), "{e}");
+}
+
 /// The values of issue 38 that passed check-config and then broke replay
 /// (an allocation of 32 GB, NaN on every row, infinite samples).
 #[test]
