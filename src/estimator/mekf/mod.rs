@@ -48,7 +48,7 @@ mod params;
 mod rules;
 mod supervise;
 mod tick;
-use context::GravityWatch;
+use context::{FieldWatch, GravityWatch};
 
 use aid::{tilt_innovation, FreeGravity, HeadingAid, LevelWindow, VelocityRefusals, WheelSpeed};
 pub use aid::{Aid, AidCounts, AidReport, AidStatus, AidWord, Rows, Why};
@@ -319,7 +319,7 @@ pub struct Mekf {
     refused_still: f64,
     /// The magnetic field (body frame, mean of a tick) when the rest
     /// detector's conditions began to hold (`field_turned`).
-    quiet_field: Option<[f64; 3]>,
+    quiet_field: FieldWatch,
     /// The gravity's turn in the body frame over a quiet period
     /// (`gravity_turned`).
     quiet_gravity: GravityWatch,
@@ -410,7 +410,7 @@ impl Mekf {
             mag_sum: 0.0,
             mag_n: 0,
             refused_still: 0.0,
-            quiet_field: None,
+            quiet_field: FieldWatch::default(),
             quiet_gravity: GravityWatch::default(),
             refusals: VelocityRefusals::default(),
             free_gravity: FreeGravity::default(),

@@ -9,3 +9,4 @@ mod turning;
 mod velocity_belief;
 
 pub(super) use gravity_turned::GravityWatch;
+pub(super) use turning::FieldWatch;

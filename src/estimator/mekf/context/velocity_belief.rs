@@ -12,26 +12,8 @@ impl Mekf {
     /// covariance that is not positive definite says the velocity is not
     /// known: 0 (nothing refuses the stop).
     pub(in crate::estimator::mekf) fn zero_velocity_nis(&self) -> f64 {
-        let extra = self.p.zupt_var + self.velocity_age_var();
-        let mut m = [[0.0; 3]; 3];
-        for (i, row) in m.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v = self.cov[VE + i][VE + j];
-            }
-            row[i] += extra;
-        }
-        let adj = [
-            [m[1][1] * m[2][2] - m[1][2] * m[2][1], m[0][2] * m[2][1] - m[0][1] * m[2][2], m[0][1] * m[1][2] - m[0][2] * m[1][1]],
-            [m[1][2] * m[2][0] - m[1][0] * m[2][2], m[0][0] * m[2][2] - m[0][2] * m[2][0], m[0][2] * m[1][0] - m[0][0] * m[1][2]],
-            [m[1][0] * m[2][1] - m[1][1] * m[2][0], m[0][1] * m[2][0] - m[0][0] * m[2][1], m[0][0] * m[1][1] - m[0][1] * m[1][0]],
-        ];
-        let det = m[0][0] * adj[0][0] + m[0][1] * adj[1][0] + m[0][2] * adj[2][0];
-        if !(det > 0.0 && det.is_finite()) {
-            return 0.0;
-        }
-        let v = self.v;
-        let x = rotate(&adj, &v);
-        ((v[0] * x[0] + v[1] * x[1] + v[2] * x[2]) / det).max(0.0)
+        let p_vv: Mat3 = std::array::from_fn(|i| std::array::from_fn(|j| self.cov[VE + i][VE + j]));
+        nis_against_zero(&p_vv, &self.v, self.p.zupt_var + self.velocity_age_var())
     }
 
     /// The variance, (m/s)^2, an accelerometer bias of `accel_bias_g` has
@@ -59,6 +41,27 @@ impl Mekf {
         let y0 = *self.yaw_at_stop.get_or_insert(yaw);
         self.turn_exposure += 2.0 * (0.5 * wrap_pi(yaw - y0)).sin().abs() * t;
     }
+}
+
+/// `vᵀ (P + extra I)⁻¹ v`: how far zero lies from the velocity `v` held
+/// with covariance `P`, `extra` the variance added on each axis; 0 when the
+/// sum is not positive definite (the velocity is not known).
+pub(in crate::estimator::mekf) fn nis_against_zero(p: &Mat3, v: &[f64; 3], extra: f64) -> f64 {
+    let mut m = *p;
+    for (i, row) in m.iter_mut().enumerate() {
+        row[i] += extra;
+    }
+    let adj = [
+        [m[1][1] * m[2][2] - m[1][2] * m[2][1], m[0][2] * m[2][1] - m[0][1] * m[2][2], m[0][1] * m[1][2] - m[0][2] * m[1][1]],
+        [m[1][2] * m[2][0] - m[1][0] * m[2][2], m[0][0] * m[2][2] - m[0][2] * m[2][0], m[0][2] * m[1][0] - m[0][0] * m[1][2]],
+        [m[1][0] * m[2][1] - m[1][1] * m[2][0], m[0][1] * m[2][0] - m[0][0] * m[2][1], m[0][0] * m[1][1] - m[0][1] * m[1][0]],
+    ];
+    let det = m[0][0] * adj[0][0] + m[0][1] * adj[1][0] + m[0][2] * adj[2][0];
+    if !(det > 0.0 && det.is_finite()) {
+        return 0.0;
+    }
+    let x = rotate(&adj, v);
+    ((v[0] * x[0] + v[1] * x[1] + v[2] * x[2]) / det).max(0.0)
 }
 
 #[cfg(test)]
