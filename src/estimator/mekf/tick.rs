@@ -49,6 +49,7 @@ impl Mekf {
             self.refused_still = 0.0;
             self.moving_tick(&a, &omega, learn, learn_gravity, &mut o, &mut fl);
         }
+        let sit = Situation { at_rest: sit.at_rest && !accelerating, still: sit.still && !accelerating, ..sit };
         self.speed_and_heading(&a, &omega, &sit, learn, &mut o, &mut fl);
         self.reacquire_velocity();
         self.inject();
@@ -172,12 +173,12 @@ impl Mekf {
     /// turned out to be a moving one (`accelerating`).
     fn still_tick(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome, fl: &mut u16) -> bool {
         let t = a.t;
+        if self.still_updates(a, at_rest, o) {
+            return true;
+        }
         if at_rest {
             *fl |= flags::STANDSTILL;
             self.counters.rest_s += t;
-        }
-        if self.still_updates(a, at_rest, o) {
-            return true;
         }
         if o.refused {
             self.refused_still += t;
@@ -215,7 +216,7 @@ impl Mekf {
     fn moving_tick(&mut self, a: &Accum, omega: &[f64; 3], learn: bool, learn_gravity: bool, o: &mut Outcome, fl: &mut u16) {
         let t = a.t;
         for aid in [Aid::ZeroVelocity, Aid::ZeroRate, Aid::StillGravity] {
-            self.aid.set(aid, AidStatus::NotApplicable(Why::Moving));
+            self.aid.fill(aid, AidStatus::NotApplicable(Why::Moving));
         }
         if a.suspect {
             return;
@@ -335,8 +336,8 @@ impl Mekf {
     /// The updates of a still unit: at a standstill (not a smooth cruise)
     /// the velocity is zero, the gyro reads the bias (zero-rate update), the
     /// specific force is gravity. Noise from the rest detector. Returns
-    /// true for a cruise that turned out to accelerate: the tick is then a
-    /// moving one.
+    /// true for a quiet tick that turned out to accelerate: the tick is
+    /// then a moving one.
     fn still_updates(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome) -> bool {
         let moving_only = [
             Aid::VehicleConstraint,
@@ -356,35 +357,36 @@ impl Mekf {
             o.learned |= u.any_fused;
             o.refused |= u.refused();
         };
+        // A car whose bias a standstill has read holds its tilt on the gyro:
+        // a quiet tick whose specific force that tilt refuses as gravity is
+        // an acceleration (a smooth pull-away, a crawl easing off, inside
+        // the rest band), whether the velocity took it for a stop or a
+        // cruise. The tick is a moving one, and its rate is not the bias
+        // (`accelerating`). After a counter gap the tilt is in doubt, and a
+        // standstill may re-level it.
+        let test_first = self.vehicle && self.bias_known && !self.after_gap && self.on(Rule::Accelerating);
+        if test_first {
+            let g = self.fuse_still_gravity(a, gate);
+            if g.refused() {
+                o.refused = true;
+                self.counters.rules.note(Rule::Accelerating);
+                return true;
+            }
+            note(g, o);
+        }
         if at_rest {
             let u = self.fuse_zero_velocity(gate);
             note(u, o);
         } else {
             self.aid.set(Aid::ZeroVelocity, AidStatus::NotApplicable(Why::Cruising));
         }
-        // A car cruising, its bias read: its tilt is held by the gyro, and
-        // a specific force that tilt refuses as gravity is an acceleration
-        // (a smooth pull-away or easing off inside the rest band): the tick
-        // is a moving one, and its rate is not the bias (`accelerating`).
-        if !at_rest && self.vehicle && self.bias_known && self.on(Rule::Accelerating) {
-            let g = self.fuse_still_gravity(a, gate);
-            if g.refused() {
-                o.refused = true;
-                self.aid.set(Aid::ZeroRate, AidStatus::NotApplicable(Why::Moving));
-                self.counters.rules.note(Rule::Accelerating);
-                return true;
-            }
-            note(g, o);
-            let (u, read) = self.fuse_zero_rate(a, gate);
-            o.bias_read = read;
-            note(u, o);
-            return false;
-        }
         let (u, read) = self.fuse_zero_rate(a, gate);
         o.bias_read = read;
         note(u, o);
-        let u = self.fuse_still_gravity(a, gate);
-        note(u, o);
+        if !test_first {
+            let u = self.fuse_still_gravity(a, gate);
+            note(u, o);
+        }
         false
     }
 }

@@ -296,6 +296,14 @@ impl AidReport {
         self.0[a as usize] = s;
     }
 
+    /// What `a` did, unless it already said so this tick (a still tick
+    /// that turned out to be a moving one keeps its sources' statuses).
+    pub fn fill(&mut self, a: Aid, s: AidStatus) {
+        if self.0[a as usize] == AidStatus::NotApplicable(Why::NotStarted) {
+            self.0[a as usize] = s;
+        }
+    }
+
     /// One more row of `a`: combined with what it did so far this tick
     /// (`AidStatus::and_row`).
     pub fn add(&mut self, a: Aid, s: AidStatus) {
