@@ -351,6 +351,10 @@ pub struct Mekf {
     lever_pending: bool,
     /// A bias is known (a rest was seen or a prior given).
     bias_known: bool,
+    /// A standstill has fused gravity with the bias read since the tilt was
+    /// last in doubt (start, restart, counter gap): the tilt is held by the
+    /// gyro from a tilt the data confirmed (`accelerating`).
+    tilt_anchored: bool,
     /// The vehicle model is in use; the x/y body rates' 3-s mean (rad/s)
     /// and the 3-s low-pass of their squared deviation from it.
     vehicle: bool,
@@ -426,6 +430,7 @@ impl Mekf {
             last_w: [0.0; 3],
             lever_pending: false,
             bias_known: false,
+            tilt_anchored: false,
             vehicle: true,
             xy_rate_mean: [0.0; 2],
             xy_rate2: 0.0,
@@ -840,6 +845,7 @@ impl Mekf {
         self.v = [0.0; 3];
         self.scale = 0.0;
         self.free_gravity.held_s = 0.0;
+        self.tilt_anchored = false;
         self.tilt_settled = false;
         self.cov = [[0.0; N]; N];
         let a = self.p.init_angle_sigma * self.p.init_angle_sigma;

@@ -53,7 +53,7 @@ const RULES: [(Rule, &str, &str, &str); 29] = [
     (
         Rule::Accelerating,
         "accelerating",
-        "a quiet tick, stop or cruise, whose specific force the held tilt refuses as gravity (the bias read, no gap since) is an acceleration: a moving tick, its rate not the bias",
+        "a quiet tick, stop or cruise, whose specific force the held tilt refuses as gravity (the tilt confirmed at a standstill since power-on, a restart or a gap) is an acceleration: a moving tick, its rate not the bias",
         "mekf/tick.rs",
     ),
     (

@@ -357,14 +357,16 @@ impl Mekf {
             o.learned |= u.any_fused;
             o.refused |= u.refused();
         };
-        // A car whose bias a standstill has read holds its tilt on the gyro:
-        // a quiet tick whose specific force that tilt refuses as gravity is
+        // A car whose tilt a standstill has confirmed (gravity fused with the
+        // bias read) holds it on the gyro: a quiet tick whose specific force
+        // that tilt refuses as gravity is
         // an acceleration (a smooth pull-away, a crawl easing off, inside
         // the rest band), whether the velocity took it for a stop or a
         // cruise. The tick is a moving one, and its rate is not the bias
-        // (`accelerating`). After a counter gap the tilt is in doubt, and a
-        // standstill may re-level it.
-        let test_first = self.vehicle && self.bias_known && !self.after_gap && self.on(Rule::Accelerating);
+        // (`accelerating`). Until then (powered on, restarted, after a
+        // counter gap) the tilt is in doubt, and a standstill corrects or
+        // re-levels it.
+        let test_first = self.vehicle && self.tilt_anchored && !self.after_gap && self.on(Rule::Accelerating);
         if test_first {
             let g = self.fuse_still_gravity(a, gate);
             if g.refused() {
@@ -384,8 +386,9 @@ impl Mekf {
         o.bias_read = read;
         note(u, o);
         if !test_first {
-            let u = self.fuse_still_gravity(a, gate);
-            note(u, o);
+            let g = self.fuse_still_gravity(a, gate);
+            note(g, o);
+            self.tilt_anchored |= at_rest && read && g.any_fused && !g.refused() && self.vehicle;
         }
         false
     }

@@ -45,6 +45,7 @@ impl Mekf {
                 self.cov[TH + i][TH + i] += a2;
             }
             self.heading.set_open(self.on(Rule::GapHeadingOpen));
+            self.tilt_anchored = false;
             self.lever_pending = true;
         } else {
             for i in 0..3 {
