@@ -128,7 +128,7 @@ fn bench(c: &mut Criterion) {
     g.throughput(Throughput::Elements(1));
     let mut pipe = Pipeline::new(&cfg);
     let mut k = 0usize;
-    g.bench_function("sample_4_frames_in_4_out", |b| {
+    g.bench_function("sample_4_frames_in_5_out", |b| {
         b.iter(|| {
             let f = &frames[k % frames.len()];
             for j in 0..4 {
