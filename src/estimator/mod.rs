@@ -617,7 +617,7 @@ impl Estimator {
                 let b = m.bias();
                 let slope_point = m.take_rest_point();
                 let bias = [b[0] * R2D, b[1] * R2D, b[2] * R2D];
-                FilterOut { mode, flags: fl, ratio, att: m.euler(), bias, slope_point, finite: m.started(), aid: m.aid_report().packed() }
+                FilterOut { mode, flags: fl, ratio, att: m.euler(), bias, slope_point, finite: m.started(), aid: m.aid_word() }
             }
         }
     }

@@ -333,6 +333,8 @@ pub struct Mekf {
     /// finished one (what is published).
     aid: AidReport,
     last_aid: AidReport,
+    /// `last_aid` packed as every estimate carries it (packed once a tick).
+    last_aid_word: AidWord,
     /// Not a vehicle, no bias read yet: the tilt has settled on the
     /// low-passed gravity since the last start or re-level (the field's
     /// dip re-taken, the bias learned in motion provisionally).
@@ -422,6 +424,7 @@ impl Mekf {
             wheel: WheelSpeed::default(),
             aid: AidReport::default(),
             last_aid: AidReport::default(),
+            last_aid_word: AidWord::default(),
             tilt_settled: false,
             turn_exposure: 0.0,
             yaw_at_stop: None,
@@ -535,6 +538,11 @@ impl Mekf {
     /// What every aid source did at the last update tick.
     pub fn aid_report(&self) -> &AidReport {
         &self.last_aid
+    }
+
+    /// The last update tick's aid report as an estimate carries it.
+    pub fn aid_word(&self) -> AidWord {
+        self.last_aid_word
     }
 
     /// What the last `step` returned.

@@ -331,6 +331,7 @@ impl Mekf {
         self.tick_flags = fl;
         self.counters.aid.add(&self.aid);
         self.last_aid = self.aid;
+        self.last_aid_word = self.aid.packed();
     }
 
     /// The updates of a still unit: at a standstill (not a smooth cruise)

@@ -304,12 +304,6 @@ impl AidReport {
         }
     }
 
-    /// One more row of `a`: combined with what it did so far this tick
-    /// (`AidStatus::and_row`).
-    pub fn add(&mut self, a: Aid, s: AidStatus) {
-        self.0[a as usize] = self.0[a as usize].and_row(s);
-    }
-
     /// The 2-bit codes, source `i` at bits `2i..2i+1` (`EST_AID`).
     pub fn word(&self) -> u32 {
         self.0.iter().enumerate().fold(0, |w, (i, s)| w | s.code() << (2 * i))
@@ -450,11 +444,16 @@ mod tests {
     #[test]
     fn a_source_with_one_row_refused_is_refused() {
         let mut r = AidReport::all(Why::Moving);
-        r.add(Aid::ZeroRate, AidStatus::Fused(0.2));
-        r.add(Aid::ZeroRate, AidStatus::Refused(1.5));
-        r.add(Aid::ZeroRate, AidStatus::Fused(0.1));
+        let mut rows = Rows::default();
+        for u in [AidStatus::Fused(0.2), AidStatus::Refused(1.5), AidStatus::Fused(0.1)] {
+            rows.push(u);
+        }
+        assert!(rows.any_fused && rows.refused());
+        r.set(Aid::ZeroRate, rows.status);
         assert_eq!(r.get(Aid::ZeroRate), AidStatus::Refused(1.5));
-        r.add(Aid::Heading, AidStatus::NotApplicable(Why::FieldDisturbed));
+        let mut rows = Rows::default();
+        rows.push(AidStatus::NotApplicable(Why::FieldDisturbed));
+        r.set(Aid::Heading, rows.status);
         assert_eq!(r.get(Aid::Heading), AidStatus::NotApplicable(Why::FieldDisturbed));
         assert_eq!(r.to_string(), "zero_rate refused (1.50)");
         let mut c = AidCounts::default();
