@@ -36,7 +36,7 @@ impl Mekf {
         let n = a.n as f64;
         let mut fl = 0u16;
         let mut o = Outcome::default();
-        self.dx = [0.0; N];
+        self.core.clear_dx();
         self.aid = AidReport::all(if a.suspect { Why::Suspect } else { Why::NotStarted });
         let omega = [a.omega[0] / n, a.omega[1] / n, a.omega[2] / n];
         let sit = self.situation(&a, &omega);
@@ -163,7 +163,7 @@ impl Mekf {
                 self.heading.forget();
             }
             if self.learns_in_motion() {
-                self.shrink(&[BI, BI + 1, BI + 2], PROVISIONAL_BIAS_SIGMA);
+                self.core.shrink(&[BI, BI + 1, BI + 2], PROVISIONAL_BIAS_SIGMA);
             }
         }
     }
