@@ -84,7 +84,9 @@ impl Config {
         }
         if !cfg.input.format.is_adis() && Path::new(&cfg.input.dbc).is_relative() {
             if let Some(dir) = path.parent() {
-                cfg.input.dbc = dir.join(&cfg.input.dbc).display().to_string();
+                // absolute, so that the printed effective config is valid wherever it is saved
+                let p = dir.join(&cfg.input.dbc);
+                cfg.input.dbc = std::fs::canonicalize(&p).unwrap_or(p).display().to_string();
             }
         }
         let invalid = |(key, msg): (String, String)| ConfigError::Invalid { path: p.clone(), at: locate(&text, &key), key, msg };

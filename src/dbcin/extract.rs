@@ -98,7 +98,7 @@ mod tests {
         for k in 0..size {
             if motorola {
                 v = (v << 1) | bit(p);
-                p = if p % 8 == 0 { p + 15 } else { p - 1 };
+                p = if p.is_multiple_of(8) { p + 15 } else { p - 1 };
             } else {
                 v |= bit(p) << k;
                 p += 1;

@@ -227,7 +227,7 @@ fn sign_magnitude_negative_factor_motorola_rad_and_can_fd() {
     let mut fd = [0u8; 32];
     fd[0..4].copy_from_slice(&(-1_000_000i32).to_le_bytes());
     fd[8..10].copy_from_slice(&(9807i16).to_le_bytes());
-    fd[31] = 5 << 0;
+    fd[31] = 5;
     assert_eq!(a.push(0, RawFrame::classic(257, &esp)), Push::Pending);
     let f = RawFrame { id: 0x160, extended: true, remote: false, fd: true, data: &fd };
     let Push::Sample(s) = a.push(0, f) else { panic!("{:?}", a.counters) };

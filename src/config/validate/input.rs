@@ -28,17 +28,16 @@ pub(super) fn input(c: &Config) -> Check {
     if !i.format.is_adis() {
         return dbc(c);
     }
-    if !i.dbc.is_empty()
-        || i.source_address.is_some()
-        || !i.signals.is_empty()
-        || !i.units.is_empty()
-        || !i.sample.is_empty()
-        || !i.valid.is_empty()
-    {
-        return err(
-            "input.format",
-            "the keys dbc, source_address, signals, units, sample and valid describe a DBC input: set format = \"dbc\"",
-        );
+    let dbc_keys = [
+        ("input.dbc", !i.dbc.is_empty()),
+        ("input.source_address", i.source_address.is_some()),
+        ("input.signals", !i.signals.is_empty()),
+        ("input.units", !i.units.is_empty()),
+        ("input.sample", !i.sample.is_empty()),
+        ("input.valid", !i.valid.is_empty()),
+    ];
+    if let Some((k, _)) = dbc_keys.iter().find(|(_, set)| *set) {
+        return err(k, "describes a DBC input, but [input] format is \"adis\" (the default): set format = \"dbc\"");
     }
     zero_or_within("input.rate_hz", i.rate_hz, RATE_HZ.0, RATE_HZ.1, "Hz", "the profile's nominal rate")?;
     for (k, v, (lo, hi), unit) in [
