@@ -80,9 +80,9 @@ impl Extractor {
         }
     }
 
-    /// The payload's last byte the signal reads, plus one.
-    pub fn end(&self) -> usize {
-        self.first as usize + self.bytes as usize
+    /// The byte window: first byte, bytes, shift.
+    pub(super) fn window(&self) -> (usize, usize, u32) {
+        (self.first as usize, self.bytes as usize, u32::from(self.shift))
     }
 }
 

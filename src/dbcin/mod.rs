@@ -14,10 +14,12 @@
 //! Pure: the DBC file is read once, by the caller of [`DbcPlan::build`].
 
 mod assemble;
+mod encode;
 pub mod extract;
 mod plan;
 
 pub use assemble::DbcAssembler;
+pub use encode::Encoded;
 pub use plan::{Assembly, Channel, Crc, DbcPlan, MsgPlan, MAX_MESSAGES};
 
 /// Standard gravity, m/s^2 per g.
