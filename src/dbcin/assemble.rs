@@ -4,11 +4,9 @@ use super::plan::{Assembly, DbcPlan};
 use crate::adis::{Drop, InputCounters, Push, RawFrame, Sample, RESYNC_AFTER};
 use std::sync::Arc;
 
-/// Assembles samples from the frames of a DBC-described IMU. Holds one
-/// sample in progress; allocates nothing per frame.
-#[derive(Clone, Debug)]
-pub struct DbcAssembler {
-    plan: Arc<DbcPlan>,
+/// The sample in progress and the history the checks need.
+#[derive(Clone, Debug, Default)]
+struct State {
     /// One bit per message received for the sample in progress, and all of them.
     have: u32,
     full: u32,
@@ -17,152 +15,146 @@ pub struct DbcAssembler {
     /// Decoded channels of the sample in progress ([`crate::config::dbcin::CHANNELS`] order).
     vals: [f64; 7],
     diag: u16,
-    /// Counter (or time, us) of the last accepted sample.
+    /// Counter (or window time, us) of the last accepted sample.
     last: Option<u64>,
     stale_run: u32,
     /// The running sample counter reported as `Sample::cnt`.
     seq: u16,
+}
+
+/// Assembles samples from the frames of a DBC-described IMU. Holds one
+/// sample in progress; allocates nothing per frame.
+#[derive(Clone, Debug)]
+pub struct DbcAssembler {
+    plan: Arc<DbcPlan>,
+    st: State,
     pub counters: InputCounters,
+}
+
+fn drop(c: &mut InputCounters, d: Drop) -> Push {
+    c.bump(d);
+    Push::Dropped(d)
 }
 
 impl DbcAssembler {
     pub fn new(plan: Arc<DbcPlan>) -> DbcAssembler {
         let full = ((1u64 << plan.msgs.len()) - 1) as u32;
-        DbcAssembler {
-            plan,
-            have: 0,
-            full,
-            cur: 0,
-            vals: [0.0; 7],
-            diag: 0,
-            last: None,
-            stale_run: 0,
-            seq: 0,
-            counters: InputCounters::default(),
-        }
+        DbcAssembler { plan, st: State { full, ..State::default() }, counters: InputCounters::default() }
     }
 
     pub fn plan(&self) -> &DbcPlan {
         &self.plan
     }
 
-    fn drop(&mut self, d: Drop) -> Push {
-        self.counters.bump(d);
-        Push::Dropped(d)
-    }
-
     /// Push one frame received at `t_us`.
     pub fn push(&mut self, t_us: u64, f: RawFrame<'_>) -> Push {
-        self.counters.frames += 1;
-        let plan = Arc::clone(&self.plan);
+        let DbcAssembler { plan, st, counters } = self;
+        let plan: &DbcPlan = plan;
+        counters.frames += 1;
         let Some(mi) = (if f.remote { None } else { plan.find(f.id, f.extended) }) else {
-            return self.drop(Drop::UnknownId);
+            return drop(counters, Drop::UnknownId);
         };
         let m = &plan.msgs[mi];
         if f.data.len() != m.len {
-            return self.drop(Drop::WrongDlc);
+            return drop(counters, Drop::WrongDlc);
         }
         if m.crc.is_some_and(|c| !c.ok(f.data)) {
-            return self.drop(Drop::Checksum);
+            return drop(counters, Drop::Checksum);
         }
         let bit = 1u32 << mi;
-        let steps = match plan.assembly {
+        match plan.assembly {
             Assembly::Counter { modulus } => {
                 let cnt = m.counter.map_or(0, |c| c.raw(f.data));
-                match self.by_counter(cnt, bit, modulus) {
-                    Ok(s) => s,
-                    Err(p) => return p,
+                if let Some(d) = st.by_counter(counters, cnt, bit, u64::from(modulus)) {
+                    return drop(counters, d);
                 }
             }
-            Assembly::Window { us } => self.by_window(t_us, bit, us),
-        };
+            Assembly::Window { us } => st.by_window(counters, t_us, bit, us),
+        }
         for &k in &m.channels {
             if let Some(c) = &plan.channels[k] {
-                self.vals[k] = c.value(f.data);
+                st.vals[k] = c.value(f.data);
             }
         }
         for (ex, want, b) in &m.valid {
             if ex.value(f.data) != *want {
-                self.diag |= b;
+                st.diag |= b;
             }
         }
-        self.have |= bit;
-        if self.have != self.full {
+        st.have |= bit;
+        if st.have != st.full {
             return Push::Pending;
         }
-        let steps = steps(self);
-        Push::Sample(self.complete(t_us, steps))
+        let steps = match (plan.assembly, st.last) {
+            (_, None) => 0,
+            (Assembly::Counter { modulus }, Some(l)) => ((st.cur + u64::from(modulus) - l) % u64::from(modulus)) as u32,
+            // from the time since the last sample's window, at the nominal rate
+            (Assembly::Window { .. }, Some(l)) => {
+                let dt = st.cur.saturating_sub(l) as f64 * 1e-6;
+                (dt * plan.rate_hz).round().clamp(1.0, f64::from(u16::MAX)) as u32
+            }
+        };
+        Push::Sample(st.complete(plan, counters, t_us, steps))
     }
+}
 
-    /// Counter mode: the checks of the ADIS path modulo the counter's width.
-    /// Ok: how to count the sample's steps once it is complete.
-    fn by_counter(&mut self, cnt: u64, bit: u32, modulus: u32) -> Result<fn(&Self) -> u32, Push> {
-        let m = u64::from(modulus);
+impl State {
+    /// Counter mode: the checks of the ADIS path modulo the counter's width;
+    /// Some: the frame is dropped for that cause.
+    fn by_counter(&mut self, c: &mut InputCounters, cnt: u64, bit: u32, m: u64) -> Option<Drop> {
         if let Some(last) = self.last {
             let d = (cnt + m - last) % m;
             if d == 0 {
-                return Err(self.drop(Drop::Duplicate));
+                return Some(Drop::Duplicate);
             }
             if d >= m / 2 {
                 self.stale_run += 1;
                 if self.stale_run < RESYNC_AFTER {
-                    return Err(self.drop(Drop::OutOfOrder));
+                    return Some(Drop::OutOfOrder);
                 }
-                self.counters.resyncs += 1;
+                // a run of "older" frames: the sensor restarted its counter
+                c.resyncs += 1;
                 self.last = None;
                 self.have = 0;
             }
         }
         self.stale_run = 0;
         if self.have != 0 && cnt != self.cur {
+            // a newer sample started before this one completed: abandon this one
             self.have = 0;
-            self.counters.bump(Drop::Partial);
+            c.bump(Drop::Partial);
         }
         if self.have & bit != 0 {
-            return Err(self.drop(Drop::Duplicate));
+            return Some(Drop::Duplicate);
         }
         if self.have == 0 {
             self.diag = 0;
         }
         self.cur = cnt;
-        Ok(|a: &Self| a.last.map_or(0, |l| ((a.cur + (a.modulus() - l)) % a.modulus()) as u32))
-    }
-
-    fn modulus(&self) -> u64 {
-        match self.plan.assembly {
-            Assembly::Counter { modulus } => u64::from(modulus),
-            Assembly::Window { .. } => 1,
-        }
+        None
     }
 
     /// Window mode: a message seen twice, or a frame after the window, abandons the sample.
-    fn by_window(&mut self, t_us: u64, bit: u32, us: u64) -> fn(&Self) -> u32 {
+    fn by_window(&mut self, c: &mut InputCounters, t_us: u64, bit: u32, us: u64) {
         if self.have != 0 && (self.have & bit != 0 || t_us.saturating_sub(self.cur) > us) {
             self.have = 0;
-            self.counters.bump(Drop::Partial);
+            c.bump(Drop::Partial);
         }
         if self.have == 0 {
             self.cur = t_us;
             self.diag = 0;
         }
-        // steps from the time since the last sample's window, at the nominal rate
-        |a: &Self| {
-            a.last.map_or(0, |l| {
-                let dt = a.cur.saturating_sub(l) as f64 * 1e-6;
-                (dt * a.plan.rate_hz).round().clamp(1.0, f64::from(u16::MAX)) as u32
-            })
-        }
     }
 
-    fn complete(&mut self, t_us: u64, steps: u32) -> Sample {
+    fn complete(&mut self, plan: &DbcPlan, c: &mut InputCounters, t_us: u64, steps: u32) -> Sample {
         self.have = 0;
         if steps > 1 {
-            self.counters.gaps += 1;
-            self.counters.lost += u64::from(steps - 1);
+            c.gaps += 1;
+            c.lost += u64::from(steps - 1);
         }
         self.seq = if self.last.is_none() { 0 } else { self.seq.wrapping_add(steps as u16) };
         self.last = Some(self.cur);
-        self.counters.samples += 1;
+        c.samples += 1;
         let v = &self.vals;
         let s = Sample {
             cnt: self.seq,
@@ -171,11 +163,11 @@ impl DbcAssembler {
             gyro: [v[0], v[1], v[2]],
             accel: [v[3], v[4], v[5]],
             magn: [0.0; 3],
-            temp: if self.plan.channels[6].is_some() { v[6] } else { self.plan.temp_default },
+            temp: if plan.channels[6].is_some() { v[6] } else { plan.temp_default },
             diag: self.diag,
         };
         if s.suspect() {
-            self.counters.suspect += 1;
+            c.suspect += 1;
         }
         s
     }

@@ -51,6 +51,20 @@ impl Extractor {
     #[inline]
     pub fn raw(&self, d: &[u8]) -> u64 {
         let w = &d[self.first as usize..self.first as usize + self.bytes as usize];
+        if self.bytes <= 8 {
+            let mut v: u64 = 0;
+            if self.motorola {
+                for b in w {
+                    v = (v << 8) | u64::from(*b);
+                }
+            } else {
+                for b in w.iter().rev() {
+                    v = (v << 8) | u64::from(*b);
+                }
+            }
+            let v = v >> self.shift;
+            return if self.size == 64 { v } else { v & ((1u64 << self.size) - 1) };
+        }
         let mut v: u128 = 0;
         if self.motorola {
             for b in w {
@@ -77,6 +91,19 @@ impl Extractor {
             (r as i128) - (1i128 << self.size)
         } else {
             r as i128
+        }
+    }
+
+    /// The raw value as a float (sign-extended when signed), without i128 arithmetic.
+    #[inline]
+    pub fn value_f64(&self, d: &[u8]) -> f64 {
+        let r = self.raw(d);
+        if self.signed && self.size < 64 && (r >> (self.size - 1)) & 1 == 1 {
+            (r | (u64::MAX << self.size)) as i64 as f64
+        } else if self.signed {
+            r as i64 as f64
+        } else {
+            r as f64
         }
     }
 

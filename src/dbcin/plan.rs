@@ -34,12 +34,8 @@ impl Crc {
             Crc::J1850 { at } => {
                 let mut c: u8 = 0xFF;
                 for (i, b) in d.iter().enumerate() {
-                    if i == at as usize {
-                        continue;
-                    }
-                    c ^= b;
-                    for _ in 0..8 {
-                        c = if c & 0x80 != 0 { (c << 1) ^ 0x1D } else { c << 1 };
+                    if i != at as usize {
+                        c = J1850[(c ^ b) as usize];
                     }
                 }
                 c ^ 0xFF == d[at as usize]
@@ -47,6 +43,23 @@ impl Crc {
         }
     }
 }
+
+/// CRC-8 SAE J1850 (poly 0x1D) by byte, made at compile time.
+const J1850: [u8; 256] = {
+    let mut t = [0u8; 256];
+    let mut i = 0;
+    while i < 256 {
+        let mut c = i as u8;
+        let mut k = 0;
+        while k < 8 {
+            c = if c & 0x80 != 0 { (c << 1) ^ 0x1D } else { c << 1 };
+            k += 1;
+        }
+        t[i] = c;
+        i += 1;
+    }
+    t
+};
 
 /// One message of the sample.
 #[derive(Clone, Debug, PartialEq)]
@@ -86,7 +99,7 @@ pub struct Channel {
 impl Channel {
     #[inline]
     pub fn value(&self, d: &[u8]) -> f64 {
-        let x = self.sig.value(d) as f64 * self.a + self.b;
+        let x = self.sig.value_f64(d) * self.a + self.b;
         match self.sign {
             Some(s) if s.raw(d) != 0 => -x,
             _ => x,
