@@ -279,7 +279,51 @@ fn the_mapping_is_refused_with_the_key_and_the_file() {
             assert!(msg.contains("t.dbc") || !msg.contains(".dbc"), "{msg}");
         }
     }
+    // the ADIS keys mean nothing to a DBC input
+    for (extra, key) in [("[input.ids]\ngyro = 0x200\n", "input.ids"), ("", "input.profile")] {
+        let text = if extra.is_empty() {
+            MM7_TOML.replace("format = ", "profile = \"adis16405\"\nformat = ")
+        } else {
+            format!("{MM7_TOML}{extra}")
+        };
+        let e = Config::parse(&text, "t.toml").unwrap_err().to_string();
+        assert!(e.contains(key) && e.contains("DBC"), "{e}");
+    }
     // an unconvertible DBC unit names the DBC
     let (k, msg) = plan(&MM7_TOML.replace("accel = \"g\"\n", ""), &MM7_DBC.replace("\"g\" GYROCOMP", "\"furlong\" GYROCOMP")).unwrap_err();
     assert!(k == "input.signals.accel_x" && msg.contains("t.dbc") && msg.contains("furlong"), "{k}: {msg}");
+}
+
+#[test]
+fn garbage_frames_are_counted_never_a_panic() {
+    let mut a = DbcAssembler::new(Arc::new(plan(MM7_TOML, MM7_DBC).unwrap()));
+    let mut b = DbcAssembler::new(Arc::new(plan(J1939_TOML, J1939_DBC).unwrap()));
+    let mut x = 0x9E37_79B9_7F4A_7C15u64;
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x
+    };
+    let mut d = [0u8; 64];
+    for t in 0..200_000u64 {
+        let r = next();
+        for v in d.iter_mut() {
+            *v = next() as u8;
+        }
+        let len = if r & 1 == 0 { 8 } else { (r >> 8) as usize % 65 };
+        let id = [0x174, 0x178, 0x17C, 0x0CF02A80, 0x18F02D80, (r >> 16) as u32 & 0x1FFF_FFFF][(r >> 40) as usize % 6];
+        let f = RawFrame { id, extended: id > 0x7FF || r & 2 != 0, remote: r & 4 != 0 && r & 8 != 0, fd: len > 8, data: &d[..len] };
+        for asm in [&mut a, &mut b] {
+            if let Push::Sample(s) = asm.push(t * 37, f) {
+                assert!(s.gyro.iter().chain(&s.accel).all(|v| v.is_finite()) && s.temp.is_finite());
+            }
+        }
+    }
+    for c in [a.counters, b.counters] {
+        assert_eq!(c.frames, 200_000);
+        assert!(c.dropped() > 0, "{c:?}");
+    }
+    // random bytes pass a CRC-8 one time in 256: the MM7.10's frames fail it; J1939 has none
+    assert!(a.counters.checksum > 10_000 && b.counters.samples > 1000, "{:?} {:?}", a.counters, b.counters);
 }

@@ -73,6 +73,12 @@ fn dbc(c: &Config) -> Check {
         return err("input.rate_hz", "format = \"dbc\" needs the nominal sample rate, Hz (a DBC does not say it)");
     }
     within("input.rate_hz", i.rate_hz, RATE_HZ.0, RATE_HZ.1, "Hz")?;
+    if i.ids != crate::adis::InputIds::DEFAULT {
+        return err("input.ids", "are the ADIS frames' IDs; a DBC input's IDs are its DBC's");
+    }
+    if i.profile != crate::config::InputConfig::default().profile {
+        return err("input.profile", "is an ADIS part; a DBC input's scales are its DBC's");
+    }
     for (k, v) in [
         ("input.gyro_lsb", i.gyro_lsb),
         ("input.accel_lsb", i.accel_lsb),
