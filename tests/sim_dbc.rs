@@ -124,6 +124,22 @@ fn j1939_and_adis_carry_the_same_samples() {
 }
 
 #[test]
+fn the_adis_only_commands_refuse_a_dbc_config() {
+    let d = tempfile::tempdir().unwrap();
+    simulate("mm7p10.toml", d.path(), "10");
+    let p = |f: &str| d.path().join(f).to_str().unwrap().to_string();
+    for args in [
+        vec!["align", "--config", &p("config.toml"), "--input", &p("imu.log")],
+        vec!["calibrate", "--config", &p("config.toml"), "--input", &p("imu.log")],
+        vec!["evaluate", "--input", &p("")],
+    ] {
+        let o = Command::new(common::bin()).args(&args).output().unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && e.contains("reads the ADIS frames only") && e.contains("format = \"dbc\""), "{args:?}: {e}");
+    }
+}
+
+#[test]
 fn a_reduced_or_adis_config_is_refused() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("x");

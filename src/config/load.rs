@@ -156,6 +156,16 @@ impl Config {
         Ok(())
     }
 
+    /// Refuse a DBC input for a command that reads the ADIS contract only.
+    pub fn adis_only(&self, command: &str) -> Result<(), String> {
+        if self.input.format.is_adis() {
+            return Ok(());
+        }
+        Err(format!(
+            "{command} reads the ADIS frames only, so far; this config's [input] is format = \"dbc\" (gyrocomp replay and gyrocomp run read it)"
+        ))
+    }
+
     /// Parse and validate config text; `origin` names it in errors.
     pub fn parse(text: &str, origin: &str) -> Result<Config, ConfigError> {
         let cfg: Config = toml::from_str(text).map_err(|e| ConfigError::Parse { path: origin.into(), msg: plain_types(&e.to_string()) })?;
