@@ -12,6 +12,7 @@ pub mod calibrate;
 pub mod candump;
 pub mod config;
 pub mod daemon;
+pub mod dbcin;
 pub mod estimator;
 pub mod evaluate;
 pub mod gap;

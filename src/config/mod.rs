@@ -11,6 +11,7 @@
 //! resolved profile and the printed effective configuration.
 
 pub mod arrays;
+pub mod dbcin;
 mod effective;
 mod load;
 mod schema;
