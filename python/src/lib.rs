@@ -306,7 +306,7 @@ impl Estimator {
         self.cfg.to_toml()
     }
 
-    /// Samples stepped so far since the last reset.
+    /// Whether a sample was stepped since the start or the last reset.
     #[getter]
     fn started(&self) -> bool {
         self.clock.is_some()
