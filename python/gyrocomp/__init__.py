@@ -13,6 +13,7 @@ from ._gyrocomp import (
     calibrate,
     read_log,
     replay,
+    replay_chunks,
 )
 
 __all__ = [
@@ -24,4 +25,5 @@ __all__ = [
     "calibrate",
     "read_log",
     "replay",
+    "replay_chunks",
 ]

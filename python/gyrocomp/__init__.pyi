@@ -5,7 +5,7 @@ deg C, time s, angles deg; every output in the vehicle frame.
 """
 
 import os
-from typing import IO, Any, Dict, List, Optional, Sequence, Tuple, TypedDict, Union
+from typing import IO, Any, Dict, Iterator, List, Optional, Sequence, Tuple, TypedDict, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -109,6 +109,20 @@ def replay(log: _Log, config: _Config = None) -> Dict[str, Any]:
     yaw, rate_x..z, bias_x..z, mode, temp) at full precision, plus flags,
     t_us and summary (a dict; its 'text' is what the CLI prints). The log (a
     path, bytes or a binary file object) is read in 256 KiB chunks."""
+
+class ReplayChunks(Iterator[Dict[str, Any]]):
+    """`replay` a chunk at a time (what `replay_chunks` returns)."""
+
+    def __iter__(self) -> "ReplayChunks": ...
+    def __next__(self) -> Dict[str, Any]: ...
+    @property
+    def summary(self) -> Optional[Dict[str, Any]]:
+        """`replay`'s summary, once the iterator is exhausted (None before)."""
+
+def replay_chunks(log: _Log, config: _Config = None, rows: int = 65536) -> ReplayChunks:
+    """`replay` as an iterator of dicts of at most `rows` rows each (the same
+    columns, without the summary): memory bounded by the chunk whatever the
+    log's length. The replay runs in a thread one chunk ahead."""
 
 def read_log(log: _Log, config: _Config = None) -> Dict[str, Any]:
     """The samples of a candump log as the daemon assembles them: gyr, acc,

@@ -17,11 +17,14 @@ use gyrocomp::output::Frames;
 use gyrocomp::pipeline::{Pipeline, Sink};
 use gyrocomp::replay as core_replay;
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyOSError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyOSError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList, PyString};
 use std::io::{self, Read};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::sync::{Arc, Mutex};
 
 const R2D: f64 = 180.0 / std::f64::consts::PI;
 const D2R: f64 = std::f64::consts::PI / 180.0;
@@ -715,27 +718,165 @@ fn replay<'py>(py: Python<'py>, log: &Bound<'py, PyAny>, config: Option<&Bound<'
         core_replay::run(&mut pipe, input, &mut cols)
     });
     let sum = sum.map_err(|e| io_err(&name, e))?;
-    let d = PyDict::new(py);
-    d.set_item("t", PyArray1::from_vec(py, cols.t))?;
-    let [r, p, y] = cols.euler;
-    d.set_item("roll", PyArray1::from_vec(py, r))?;
-    d.set_item("pitch", PyArray1::from_vec(py, p))?;
-    d.set_item("yaw", PyArray1::from_vec(py, y))?;
-    for (k, v) in ["rate_x", "rate_y", "rate_z"].into_iter().zip(cols.rate) {
-        d.set_item(k, PyArray1::from_vec(py, v))?;
+    let d = cols.into_dict(py)?;
+    d.set_item("summary", summary_dict(py, &sum)?)?;
+    Ok(d)
+}
+
+impl ReplayCols {
+    fn len(&self) -> usize {
+        self.t.len()
     }
-    for (k, v) in ["bias_x", "bias_y", "bias_z"].into_iter().zip(cols.bias) {
-        d.set_item(k, PyArray1::from_vec(py, v))?;
+
+    fn into_dict(self, py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("t", PyArray1::from_vec(py, self.t))?;
+        let [r, p, y] = self.euler;
+        d.set_item("roll", PyArray1::from_vec(py, r))?;
+        d.set_item("pitch", PyArray1::from_vec(py, p))?;
+        d.set_item("yaw", PyArray1::from_vec(py, y))?;
+        for (k, v) in ["rate_x", "rate_y", "rate_z"].into_iter().zip(self.rate) {
+            d.set_item(k, PyArray1::from_vec(py, v))?;
+        }
+        for (k, v) in ["bias_x", "bias_y", "bias_z"].into_iter().zip(self.bias) {
+            d.set_item(k, PyArray1::from_vec(py, v))?;
+        }
+        d.set_item("mode", PyArray1::from_vec(py, self.mode))?;
+        d.set_item("temp", PyArray1::from_vec(py, self.temp))?;
+        d.set_item("flags", PyArray1::from_vec(py, self.flags))?;
+        d.set_item("t_us", PyArray1::from_vec(py, self.t_us))?;
+        Ok(d)
     }
-    d.set_item("mode", PyArray1::from_vec(py, cols.mode))?;
-    d.set_item("temp", PyArray1::from_vec(py, cols.temp))?;
-    d.set_item("flags", PyArray1::from_vec(py, cols.flags))?;
-    d.set_item("t_us", PyArray1::from_vec(py, cols.t_us))?;
-    let js = serde_json::to_string(&sum).map_err(|e| PyValueError::new_err(e.to_string()))?;
+}
+
+/// The replay summary as a dict; its "text" is what the CLI prints.
+fn summary_dict<'py>(py: Python<'py>, sum: &core_replay::Summary) -> PyResult<Bound<'py, PyAny>> {
+    let js = serde_json::to_string(sum).map_err(|e| PyValueError::new_err(e.to_string()))?;
     let summary = py.import("json")?.call_method1("loads", (js,))?;
     summary.set_item("text", sum.render())?;
-    d.set_item("summary", summary)?;
-    Ok(d)
+    Ok(summary)
+}
+
+/// What the replay thread of `replay_chunks` hands over.
+enum ChunkMsg {
+    Chunk(Box<ReplayCols>),
+    End(io::Result<Box<core_replay::Summary>>),
+}
+
+/// Sends the columns a chunk of `rows` at a time; stops the reader when
+/// nobody takes them any more.
+struct ChunkSink {
+    cols: ReplayCols,
+    rows: usize,
+    tx: SyncSender<ChunkMsg>,
+    stop: Arc<AtomicBool>,
+}
+
+impl Sink for ChunkSink {
+    #[inline]
+    fn output(&mut self, e: &Estimate, f: &Frames) {
+        self.cols.output(e, f);
+        if self.cols.len() >= self.rows {
+            let c = std::mem::take(&mut self.cols);
+            if self.tx.send(ChunkMsg::Chunk(Box::new(c))).is_err() {
+                self.stop.store(true, Ordering::Relaxed);
+            }
+        }
+    }
+}
+
+/// A reader that ends (EOF) once `stop` is set.
+struct StopReader<R> {
+    inner: R,
+    stop: Arc<AtomicBool>,
+}
+
+impl<R: Read> Read for StopReader<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        if self.stop.load(Ordering::Relaxed) {
+            return Ok(0);
+        }
+        self.inner.read(buf)
+    }
+}
+
+/// `replay` a chunk at a time: an iterator of dicts of at most `rows` rows
+/// each (the same columns as `replay`, without the summary), for logs whose
+/// estimates do not fit in memory at once. The replay runs in a thread one
+/// chunk ahead; `.summary` is there once the iterator is exhausted.
+#[pyclass(module = "gyrocomp._gyrocomp")]
+struct ReplayChunks {
+    rx: Mutex<Option<Receiver<ChunkMsg>>>,
+    stop: Arc<AtomicBool>,
+    name: String,
+    summary: Option<Py<PyAny>>,
+}
+
+#[pymethods]
+impl ReplayChunks {
+    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    fn __next__<'py>(&mut self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(rx) = self.rx.lock().map_err(|_| PyRuntimeError::new_err("replay_chunks: poisoned"))?.take() else {
+            return Ok(None);
+        };
+        let (msg, rx) = py.allow_threads(move || (rx.recv(), rx));
+        match msg {
+            Ok(ChunkMsg::Chunk(c)) => {
+                *self.rx.lock().map_err(|_| PyRuntimeError::new_err("replay_chunks: poisoned"))? = Some(rx);
+                c.into_dict(py).map(Some)
+            }
+            Ok(ChunkMsg::End(Ok(sum))) => {
+                self.summary = Some(summary_dict(py, &sum)?.unbind());
+                Ok(None)
+            }
+            Ok(ChunkMsg::End(Err(e))) => Err(io_err(&self.name, e)),
+            Err(_) => Err(PyRuntimeError::new_err(format!("replaying {}: the replay thread ended without a result", self.name))),
+        }
+    }
+
+    /// The replay summary (as `replay`'s), None until the iterator is exhausted.
+    #[getter]
+    fn summary(&self, py: Python<'_>) -> Option<Py<PyAny>> {
+        self.summary.as_ref().map(|s| s.clone_ref(py))
+    }
+}
+
+impl Drop for ReplayChunks {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+}
+
+#[pyfunction]
+#[pyo3(signature = (log, config=None, rows=65536))]
+fn replay_chunks(log: &Bound<'_, PyAny>, config: Option<&Bound<'_, PyAny>>, rows: usize) -> PyResult<ReplayChunks> {
+    if rows == 0 {
+        return Err(PyValueError::new_err("rows = 0: a chunk needs at least one row"));
+    }
+    let cfg = load_config(config)?;
+    let src = LogSource::of(log)?;
+    let name = src.name();
+    let stop = Arc::new(AtomicBool::new(false));
+    let input = io::BufReader::with_capacity(CHUNK, StopReader { inner: src.reader()?, stop: stop.clone() });
+    let speed = gyrocomp::speed::load(&cfg).map_err(|e| PyValueError::new_err(format!("config: {e}")))?;
+    // one chunk in the channel and one being filled: memory bounded by the chunk
+    let (tx, rx) = sync_channel(1);
+    let mut sink = ChunkSink { cols: ReplayCols::default(), rows, tx: tx.clone(), stop: stop.clone() };
+    std::thread::Builder::new()
+        .name("gyrocomp-replay".into())
+        .spawn(move || {
+            let mut pipe = Pipeline::with_speed(&cfg, speed);
+            let res = core_replay::run(&mut pipe, input, &mut sink);
+            if sink.cols.len() > 0 {
+                let _ = tx.send(ChunkMsg::Chunk(Box::new(std::mem::take(&mut sink.cols))));
+            }
+            let _ = tx.send(ChunkMsg::End(res.map(Box::new)));
+        })
+        .map_err(|e| PyRuntimeError::new_err(format!("cannot start the replay thread: {e}")))?;
+    Ok(ReplayChunks { rx: Mutex::new(Some(rx)), stop, name, summary: None })
 }
 
 /// The samples of a candump log as the daemon assembles them, in the units
@@ -961,6 +1102,8 @@ fn _gyrocomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Estimator>()?;
     m.add_class::<Estimate1>()?;
     m.add_function(wrap_pyfunction!(replay, m)?)?;
+    m.add_function(wrap_pyfunction!(replay_chunks, m)?)?;
+    m.add_class::<ReplayChunks>()?;
     m.add_function(wrap_pyfunction!(read_log, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(_bench_step, m)?)?;

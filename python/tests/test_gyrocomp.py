@@ -103,6 +103,26 @@ def test_replay_garbage_counts_bad_lines_and_bad_paths_raise(tmp_path):
         gyrocomp.replay(12)
 
 
+def test_replay_chunks_concatenate_to_replay(road_log):
+    a = gyrocomp.replay(road_log)
+    for src in (road_log, road_log.read_bytes()):
+        it = gyrocomp.replay_chunks(src, rows=1000)
+        assert it.summary is None
+        chunks = list(it)
+        assert [len(c["t"]) for c in chunks] == [1000] * 8 + [193]
+        for k in a:
+            if k != "summary":
+                np.testing.assert_array_equal(np.concatenate([c[k] for c in chunks]), a[k], err_msg=k)
+        assert it.summary["input"] == a["summary"]["input"] and it.summary["text"] == a["summary"]["text"]
+    # left early: the replay thread stops, nothing hangs
+    it = gyrocomp.replay_chunks(road_log, rows=10)
+    first = next(it)
+    assert len(first["t"]) == 10
+    del it
+    with pytest.raises(ValueError, match="rows = 0"):
+        gyrocomp.replay_chunks(road_log, rows=0)
+
+
 # ------------------------------------------------------------------ estimator
 
 @pytest.fixture(scope="module")
