@@ -514,7 +514,12 @@ impl Estimator {
     }
 
     fn __repr__(&self) -> String {
-        format!("Estimator(rate_hz={}, mode={:?}, started={})", self.rate, self.cfg.estimator.mode, self.clock.is_some())
+        format!(
+            "Estimator(rate_hz={}, mode={:?}, started={})",
+            self.rate,
+            self.cfg.estimator.mode.name(),
+            if self.clock.is_some() { "True" } else { "False" }
+        )
     }
 }
 
