@@ -26,19 +26,21 @@
 pub mod container;
 
 use crate::adis::RawFrame;
-use crate::batches::Batches;
 use crate::estimator::mekf::Aid;
 use crate::estimator::Estimate;
 use crate::outfile::OutFile;
-use container::Container;
+use container::{Chunk, Chunker, Compression, Container};
 use serde::Serialize;
 use std::io;
 use std::path::Path;
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::thread::JoinHandle;
 
 /// Uncompressed bytes per chunk (fixed: the chunking is part of the bytes).
 pub const CHUNK_SIZE: usize = 1 << 20;
-/// zstd's fastest positive level (docs/mcap.md: what the others cost).
-pub const ZSTD_LEVEL: i32 = 1;
+/// lz4: of what was measured the least time for the 10-minute replay
+/// (docs/mcap.md: zstd level 1 makes the file a fifth smaller for 5 % more time).
+pub const COMPRESSION: Compression = Compression::Lz4;
 /// The parent frame of every transform (REP-103 `world`, ENU).
 pub const WORLD_FRAME: &str = "world";
 /// The vehicle frame (REP-103 `base_link`, FLU).
@@ -406,11 +408,17 @@ impl Topic {
         [Topic::Tf, Topic::Estimate, Topic::CanRx, Topic::TruthTf, Topic::TruthEstimate, Topic::VqfTf, Topic::VqfEstimate];
 }
 
-/// The MCAP being written; see the module docs.
+/// The MCAP being written; see the module docs. Messages are encoded into
+/// chunks on the caller's thread; a thread of its own compresses and writes
+/// each full chunk, in order (the same bytes as on one thread).
 pub struct McapFile {
-    w: Container<OutFile>,
+    chunker: Chunker,
     /// Channel id and the next sequence number, by `Topic as usize`.
     ch: [Option<(u16, u32)>; 7],
+    /// Full chunks to the writing thread, and back emptied for reuse.
+    tx: Option<SyncSender<Chunk>>,
+    back: Receiver<Chunk>,
+    writer: Option<JoinHandle<io::Result<Container<OutFile>>>>,
 }
 
 impl McapFile {
@@ -425,7 +433,7 @@ impl McapFile {
         }
         let out = OutFile::create(dest)?;
         let library = format!("gyrocomp {}", env!("CARGO_PKG_VERSION"));
-        let mut w = Container::new(out, "", &library, CHUNK_SIZE, ZSTD_LEVEL)?;
+        let mut w = Container::new(out, "", &library, COMPRESSION)?;
         let tf = w.add_schema(TF_MESSAGE, "ros2msg", tf_message_schema().as_bytes())?;
         let est = w.add_schema(ESTIMATE, "ros2msg", estimate_schema().as_bytes())?;
         let can = w.add_schema(CAN_FRAME, "ros2msg", can_frame_schema().as_bytes())?;
@@ -444,7 +452,38 @@ impl McapFile {
             };
             ch[t as usize] = Some((w.add_channel(schema, t.name(), encoding)?, 0));
         }
-        Ok(McapFile { w, ch })
+        let chunker = Chunker::new(CHUNK_SIZE, w.channel_count());
+        let (tx, rx) = sync_channel::<Chunk>(2);
+        let (back_tx, back) = sync_channel::<Chunk>(4);
+        let writer = std::thread::Builder::new().name("mcap".into()).spawn(move || {
+            for c in rx {
+                w.chunk(&c)?;
+                let _ = back_tx.try_send(c);
+            }
+            Ok(w)
+        })?;
+        Ok(McapFile { chunker, ch, tx: Some(tx), back, writer: Some(writer) })
+    }
+
+    /// A full chunk to the writing thread; its error if it stopped on one.
+    fn send(&mut self, c: Chunk) -> Result<(), McapError> {
+        while let Ok(e) = self.back.try_recv() {
+            self.chunker.recycle(e);
+        }
+        match &self.tx {
+            Some(tx) if tx.send(c).is_ok() => Ok(()),
+            _ => Err(self.stop().err().unwrap_or_else(|| io::Error::other("the mcap writer stopped")).into()),
+        }
+    }
+
+    /// No more chunks: the writing thread's container, or its error.
+    fn stop(&mut self) -> io::Result<Container<OutFile>> {
+        self.tx = None;
+        match self.writer.take().map(JoinHandle::join) {
+            Some(Ok(r)) => r,
+            Some(Err(_)) => Err(io::Error::other("the mcap writer panicked")),
+            None => Err(io::Error::other("the mcap writer already stopped")),
+        }
     }
 
     /// The next message on `topic` (nothing when this file has no such
@@ -455,7 +494,10 @@ impl McapFile {
         };
         let (id, s) = (*id, *seq);
         *seq = seq.wrapping_add(1);
-        self.w.message(id, s, t_us.saturating_mul(1000), data)
+        match self.chunker.message(id, s, t_us.saturating_mul(1000), data)? {
+            Some(full) => self.send(full),
+            None => Ok(()),
+        }
     }
 
     fn finite(topic: Topic, what: &'static str, t_us: u64, v: &[f64]) -> Result<(), McapError> {
@@ -540,88 +582,59 @@ impl McapFile {
     }
 
     /// Write the summary and footer, then rename over the destination.
-    pub fn commit(self) -> Result<(), McapError> {
-        self.w.finish()?.commit()?;
+    pub fn commit(mut self) -> Result<(), McapError> {
+        if let Some(c) = self.chunker.take() {
+            self.send(c)?;
+        }
+        self.stop()?.finish()?.commit()?;
         Ok(())
     }
 }
 
-/// What the replay hands to the MCAP thread.
-enum Rec {
-    Estimate(Estimate),
-    Can { t_us: u64, id: u32, extended: bool, remote: bool, fd: bool, len: u8, data: [u8; 8] },
-}
-
-/// The [`crate::pipeline::Sink`] part of `replay --mcap`: estimates and input
-/// frames are batched to a thread of their own, which encodes and writes
-/// them in the order received (the encoding and the compression are most of the
-/// MCAP's cost, and would otherwise hold up the sink's other outputs). The
-/// first error stops the thread and comes back from [`McapSink::finish`].
-pub struct McapSink {
-    batches: Batches<Rec>,
-    handle: Option<std::thread::JoinHandle<Result<McapFile, McapError>>>,
-}
-
-impl McapSink {
-    pub fn new(mut file: McapFile) -> McapSink {
-        let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Rec>>(4);
-        let (back_tx, back) = std::sync::mpsc::sync_channel::<Vec<Rec>>(8);
-        let handle = std::thread::Builder::new()
-            .name("mcap".into())
-            .spawn(move || {
-                for mut batch in rx {
-                    for r in batch.drain(..) {
-                        match r {
-                            Rec::Estimate(e) => file.estimate(&e)?,
-                            Rec::Can { t_us, id, extended, remote, fd, len, data } => {
-                                file.can(t_us, &RawFrame { id, extended, remote, fd, data: &data[..len as usize] })?
-                            }
-                        }
-                    }
-                    let _ = back_tx.try_send(batch);
-                }
-                Ok(file)
-            })
-            .expect("spawning the mcap thread");
-        McapSink { batches: Batches::new(tx, back), handle: Some(handle) }
-    }
-
-    /// A record for the thread; a send fails only when the thread stopped
-    /// on an error, which `finish` says.
-    fn push(&mut self, r: Rec) {
-        self.batches.push(r);
-    }
-
-    pub fn output(&mut self, e: &Estimate) {
-        self.push(Rec::Estimate(*e));
-    }
-
-    pub fn input(&mut self, t_us: u64, f: &RawFrame<'_>) {
-        let n = f.data.len().min(8);
-        let mut data = [0u8; 8];
-        data[..n].copy_from_slice(&f.data[..n]);
-        self.push(Rec::Can { t_us, id: f.id, extended: f.extended, remote: f.remote, fd: f.fd, len: n as u8, data });
-    }
-
-    /// Everything written: the file, ready for [`McapFile::commit`], or the first error.
-    pub fn finish(mut self) -> Result<McapFile, McapError> {
-        self.batches.flush();
-        self.batches.close();
-        match self.handle.take().map(|h| h.join()) {
-            Some(Ok(r)) => r,
-            Some(Err(_)) => Err(McapError::Io(io::Error::other("the mcap thread panicked"))),
-            None => Err(McapError::Io(io::Error::other("the mcap thread already finished"))),
+impl Drop for McapFile {
+    /// Not committed (a failed run): the writing thread stops and drops its
+    /// file, which removes the temporary file, before this returns.
+    fn drop(&mut self) {
+        self.tx = None;
+        if let Some(h) = self.writer.take() {
+            let _ = h.join();
         }
     }
 }
 
-impl Drop for McapSink {
-    /// Not finished (the replay failed): stop the thread; its file is dropped
-    /// and so its temporary file removed.
-    fn drop(&mut self) {
-        self.batches.close();
-        if let Some(h) = self.handle.take() {
-            let _ = h.join();
+/// The [`crate::pipeline::Sink`] part of `replay --mcap`: each estimate and
+/// input frame encoded as it comes (on the replay's writing thread; the
+/// compression has a thread of its own, see [`McapFile`]). The first error
+/// stops the recording and comes back from [`McapSink::finish`].
+pub struct McapSink {
+    file: McapFile,
+    err: Option<McapError>,
+}
+
+impl McapSink {
+    pub fn new(file: McapFile) -> McapSink {
+        McapSink { file, err: None }
+    }
+
+    pub fn output(&mut self, e: &Estimate) {
+        if self.err.is_none() {
+            self.err = self.file.estimate(e).err();
+        }
+    }
+
+    pub fn input(&mut self, t_us: u64, f: &RawFrame<'_>) {
+        if self.err.is_none() {
+            // replay keeps at most 8 payload bytes (docs/mcap.md)
+            let f = RawFrame { data: &f.data[..f.data.len().min(8)], ..*f };
+            self.err = self.file.can(t_us, &f).err();
+        }
+    }
+
+    /// Everything written: the file, ready for [`McapFile::commit`], or the first error.
+    pub fn finish(self) -> Result<McapFile, McapError> {
+        match self.err {
+            Some(e) => Err(e),
+            None => Ok(self.file),
         }
     }
 }
