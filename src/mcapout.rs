@@ -239,58 +239,22 @@ struct AttitudeMsg {
 /// The CDR encapsulation header: plain CDR, little-endian.
 const CDR_LE: [u8; 4] = [0, 1, 0, 0];
 
-/// A CDR message appended to a buffer: every field at its natural
-/// alignment, counted from the end of the encapsulation header.
-struct Cdr<'a> {
-    b: &'a mut Vec<u8>,
-    origin: usize,
+/// Fixed-layout CDR: each message is built in an array on the stack at
+/// the offsets its schema gives (every field at its natural alignment,
+/// counted from the end of the encapsulation header: `put` takes that
+/// offset) and appended in one piece.
+fn put<const N: usize>(m: &mut [u8], at: usize, v: [u8; N]) {
+    m[4 + at..4 + at + N].copy_from_slice(&v);
 }
 
-impl<'a> Cdr<'a> {
-    /// The encapsulation header, then the fields.
-    fn new(b: &'a mut Vec<u8>) -> Cdr<'a> {
-        b.extend_from_slice(&CDR_LE);
-        let origin = b.len();
-        Cdr { b, origin }
-    }
-    fn align(&mut self, n: usize) {
-        let pad = (n - (self.b.len() - self.origin) % n) % n;
-        self.b.extend_from_slice(&[0u8; 8][..pad]);
-    }
-    fn u8(&mut self, v: u8) {
-        self.b.push(v);
-    }
-    fn u16(&mut self, v: u16) {
-        self.align(2);
-        self.b.extend_from_slice(&v.to_le_bytes());
-    }
-    fn u32(&mut self, v: u32) {
-        self.align(4);
-        self.b.extend_from_slice(&v.to_le_bytes());
-    }
-    fn f32(&mut self, v: f64) {
-        self.align(4);
-        self.b.extend_from_slice(&(v as f32).to_le_bytes());
-    }
-    fn f64(&mut self, v: f64) {
-        self.align(8);
-        self.b.extend_from_slice(&v.to_le_bytes());
-    }
-    /// `builtin_interfaces/Time` (seconds checked by [`ros_sec`]).
-    fn time(&mut self, sec: i32, t_us: u64) {
-        self.u32(sec as u32);
-        self.u32((t_us % 1_000_000) as u32 * 1000);
-    }
-    /// A string: its length with the NUL, the bytes, the NUL.
-    fn string(&mut self, s: &str) {
-        self.u32(s.len() as u32 + 1);
-        self.b.extend_from_slice(s.as_bytes());
-        self.b.push(0);
-    }
-    fn bytes(&mut self, v: &[u8]) {
-        self.u32(v.len() as u32);
-        self.b.extend_from_slice(v);
-    }
+/// `builtin_interfaces/Time` at `at` (seconds checked by [`ros_sec`]).
+fn put_time(m: &mut [u8], at: usize, sec: i32, t_us: u64) {
+    put(m, at, sec.to_le_bytes());
+    put(m, at + 4, ((t_us % 1_000_000) as u32 * 1000).to_le_bytes());
+}
+
+fn f32le(v: f64) -> [u8; 4] {
+    (v as f32).to_le_bytes()
 }
 
 /// A ROS 2 `builtin_interfaces/Time`'s seconds (`int32`), or the error
@@ -299,55 +263,74 @@ fn ros_sec(topic: Topic, t_us: u64) -> Result<i32, McapError> {
     i32::try_from(t_us / 1_000_000).map_err(|_| McapError::Time { topic: topic.name(), t_us })
 }
 
-/// `tf2_msgs/msg/TFMessage` with one transform `world` -> `child`, no translation.
-fn tf_cdr(b: &mut Vec<u8>, sec: i32, t_us: u64, child: &str, q: [f64; 4]) {
-    let mut c = Cdr::new(b);
-    c.u32(1);
-    c.time(sec, t_us);
-    c.string(WORLD_FRAME);
-    c.string(child);
-    for v in [0.0, 0.0, 0.0, q[1], q[2], q[3], q[0]] {
-        c.f64(v);
+/// `tf2_msgs/msg/TFMessage` with one transform `world` -> `child` and no
+/// translation, up to its rotation, stamped 0: built once per channel;
+/// [`tf_cdr`] stamps a copy and appends the rotation.
+fn tf_head(child: &str) -> Vec<u8> {
+    let mut b = CDR_LE.to_vec();
+    let string = |b: &mut Vec<u8>, s: &str| {
+        b.resize(4 + (b.len() - 4).div_ceil(4) * 4, 0);
+        b.extend_from_slice(&(s.len() as u32 + 1).to_le_bytes());
+        b.extend_from_slice(s.as_bytes());
+        b.push(0);
+    };
+    b.extend_from_slice(&1u32.to_le_bytes()); // one transform
+    b.extend_from_slice(&[0; 8]); // header.stamp
+    string(&mut b, WORLD_FRAME); // header.frame_id
+    string(&mut b, child); // child_frame_id
+    b.resize(4 + (b.len() - 4).div_ceil(8) * 8, 0);
+    b.extend_from_slice(&[0; 24]); // translation
+    b
+}
+
+/// A transform from [`tf_head`]: stamped, `q` (`[w, x, y, z]`) as its rotation.
+fn tf_cdr(b: &mut Vec<u8>, head: &[u8], sec: i32, t_us: u64, q: [f64; 4]) {
+    let at = b.len();
+    b.extend_from_slice(head);
+    put_time(&mut b[at..], 4, sec, t_us);
+    for v in [q[1], q[2], q[3], q[0]] {
+        b.extend_from_slice(&v.to_le_bytes());
     }
 }
 
+/// Bytes of a `gyrocomp/msg/Estimate` in CDR, with the header.
+const ESTIMATE_LEN: usize = 4 + 92 + Aid::ALL.len();
+
 /// `gyrocomp/msg/Estimate` as CDR (108 bytes with the header).
 fn estimate_cdr(b: &mut Vec<u8>, sec: i32, e: &Estimate) {
-    let mut c = Cdr::new(b);
-    c.time(sec, e.t_us);
-    c.f64(e.t);
-    c.u16(e.cnt);
-    for v in [e.roll, e.pitch, e.yaw] {
-        c.f32(v);
+    let mut m = [0u8; ESTIMATE_LEN];
+    m[..4].copy_from_slice(&CDR_LE);
+    put_time(&mut m, 0, sec, e.t_us);
+    put(&mut m, 8, e.t.to_le_bytes());
+    put(&mut m, 16, e.cnt.to_le_bytes());
+    for (i, v) in [e.roll, e.pitch, e.yaw].into_iter().chain(e.rate).chain(e.bias).chain([e.temp]).enumerate() {
+        put(&mut m, 20 + 4 * i, f32le(v));
     }
-    for v in e.rate.iter().chain(&e.bias) {
-        c.f32(*v);
+    m[4 + 60] = e.mode;
+    put(&mut m, 64, f32le(e.ratio));
+    put(&mut m, 68, e.flags.to_le_bytes());
+    for (i, (_, bit)) in FLAG_NAMES.iter().enumerate() {
+        m[4 + 70 + i] = u8::from(e.flags & bit != 0);
     }
-    c.f32(e.temp);
-    c.u8(e.mode);
-    c.f32(e.ratio);
-    c.u16(e.flags);
-    for (_, bit) in FLAG_NAMES {
-        c.u8(u8::from(e.flags & bit != 0));
+    put(&mut m, 84, (e.aid.status & crate::output::AID_MASK).to_le_bytes());
+    put(&mut m, 88, f32le(crate::output::ratio_sent(e.aid.worst_ratio)));
+    for (i, a) in Aid::ALL.into_iter().enumerate() {
+        m[4 + 92 + i] = e.aid.code(a) as u8;
     }
-    c.u32(e.aid.status & crate::output::AID_MASK);
-    c.f32(crate::output::ratio_sent(e.aid.worst_ratio));
-    for a in Aid::ALL {
-        c.u8(e.aid.code(a) as u8);
-    }
+    b.extend_from_slice(&m);
 }
 
 /// `gyrocomp/msg/CanFrame` as CDR: 24 bytes and the payload.
 fn can_cdr(b: &mut Vec<u8>, sec: i32, t_us: u64, f: &RawFrame<'_>) {
     let n = f.data.len().min(255);
-    let mut c = Cdr::new(b);
-    c.time(sec, t_us);
-    c.u32(f.id);
-    for v in [f.extended, f.remote, f.fd] {
-        c.u8(u8::from(v));
-    }
-    c.u8(n as u8);
-    c.bytes(&f.data[..n]);
+    let mut m = [0u8; 24];
+    m[..4].copy_from_slice(&CDR_LE);
+    put_time(&mut m, 0, sec, t_us);
+    put(&mut m, 8, f.id.to_le_bytes());
+    put(&mut m, 12, [u8::from(f.extended), u8::from(f.remote), u8::from(f.fd), n as u8]);
+    put(&mut m, 16, (n as u32).to_le_bytes());
+    b.extend_from_slice(&m);
+    b.extend_from_slice(&f.data[..n]);
 }
 
 /// `[w, x, y, z]` of the FRD body in NED from Z-Y-X Euler angles (deg):
@@ -415,6 +398,8 @@ pub struct McapFile {
     chunker: Chunker,
     /// Channel id and the next sequence number, by `Topic as usize`.
     ch: [Option<(u16, u32)>; 7],
+    /// A transform channel's message up to its rotation ([`tf_head`]), by `Topic as usize`.
+    tf_heads: [Vec<u8>; 7],
     /// Full chunks to the writing thread, and back emptied for reuse.
     tx: Option<SyncSender<Chunk>>,
     back: Receiver<Chunk>,
@@ -462,7 +447,7 @@ impl McapFile {
             }
             Ok(w)
         })?;
-        Ok(McapFile { chunker, ch, tx: Some(tx), back, writer: Some(writer) })
+        Ok(McapFile { chunker, ch, tf_heads: Default::default(), tx: Some(tx), back, writer: Some(writer) })
     }
 
     /// A full chunk to the writing thread; its error if it stopped on one.
@@ -514,10 +499,17 @@ impl McapFile {
         let q = quat_enu_flu(rpy[0], rpy[1], rpy[2]);
         Self::finite(topic, "quaternion", t_us, &q)?;
         let sec = ros_sec(topic, t_us)?;
-        self.put(topic, t_us, |b| {
-            tf_cdr(b, sec, t_us, child, q);
+        let i = topic as usize;
+        if self.tf_heads[i].is_empty() {
+            self.tf_heads[i] = tf_head(child);
+        }
+        let head = std::mem::take(&mut self.tf_heads[i]);
+        let r = self.put(topic, t_us, |b| {
+            tf_cdr(b, &head, sec, t_us, q);
             Ok(())
-        })
+        });
+        self.tf_heads[i] = head;
+        r
     }
 
     /// One estimate: `/tf` and `/gyrocomp/estimate`.
@@ -771,7 +763,7 @@ mod tests {
 
         b.clear();
         let q = quat_enu_flu(0.0, 0.0, 0.0);
-        tf_cdr(&mut b, 1, 1_000_002, "base_link", q);
+        tf_cdr(&mut b, &tf_head("base_link"), 1, 1_000_002, q);
         let m = &b[4..];
         assert_eq!(b.len(), 4 + 96);
         assert_eq!(m[..16], [1, 0, 0, 0, 1, 0, 0, 0, 0xd0, 0x07, 0, 0, 6, 0, 0, 0]);
