@@ -443,6 +443,8 @@ impl McapFile {
         let writer = std::thread::Builder::new().name("mcap".into()).spawn(move || {
             for c in rx {
                 w.chunk(&c)?;
+                // the disk writes while the replay runs, not all in commit's sync
+                w.out_mut().start_writeback()?;
                 let _ = back_tx.try_send(c);
             }
             Ok(w)

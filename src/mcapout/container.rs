@@ -353,6 +353,11 @@ impl<W: Write> Container<W> {
         Ok(())
     }
 
+    /// Where the file goes.
+    pub fn out_mut(&mut self) -> &mut W {
+        &mut self.out
+    }
+
     /// The data end and the summary (after the last chunk); the writer, flushed.
     pub fn finish(mut self) -> io::Result<W> {
         let crc = self.data_crc.clone().finalize();
