@@ -279,7 +279,7 @@ impl InputCounters {
             Drop::Checksum => self.checksum,
         }
     }
-    fn bump(&mut self, d: Drop) {
+    pub(crate) fn bump(&mut self, d: Drop) {
         let c = match d {
             Drop::UnknownId => &mut self.unknown_id,
             Drop::WrongDlc => &mut self.wrong_dlc,

@@ -205,6 +205,7 @@ pub fn run(a: &AlignArgs) -> Result<(), String> {
         Some(p) => Config::load(p).map_err(|e| e.to_string())?,
         None => Config::default(),
     };
+    cfg.adis_only("align")?;
     let name = a.input.display().to_string();
     let file = std::fs::File::open(&a.input).map_err(|e| format!("cannot open {name}: {e}"))?;
     let mut asm = Assembler::new(cfg.profile(), cfg.input.ids);

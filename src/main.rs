@@ -210,5 +210,6 @@ fn cmd_calibrate(
     plot: Option<PathBuf>,
 ) -> Result<(), String> {
     let cfg = load_config(&config)?;
+    cfg.adis_only("calibrate")?;
     gyrocomp::calibrate::cli(&cfg, config.as_deref(), &input, order, write.as_deref(), plot.as_deref())
 }

@@ -14,9 +14,11 @@
 
 use crate::adis::{Assembler, Drop, InputCounters, Push, RawFrame};
 use crate::config::{Config, OutputConfig};
+use crate::dbcin::{DbcAssembler, DbcPlan};
 use crate::estimator::{Estimate, Estimator};
 use crate::output::{encode, Frames, StatusCounters};
 use crate::speed::{SpeedCounts, SpeedDecoder};
+use std::sync::Arc;
 
 /// Receives what the pipeline produces.
 pub trait Sink {
@@ -41,8 +43,31 @@ impl Sink for NullSink {
     fn output(&mut self, _: &Estimate, _: &Frames) {}
 }
 
+/// The input path: the ADIS frames, or a DBC-described IMU's.
+#[derive(Clone, Debug)]
+enum Input {
+    Adis(Assembler),
+    Dbc(DbcAssembler),
+}
+
+impl Input {
+    #[inline]
+    fn push(&mut self, t_us: u64, frame: RawFrame<'_>) -> Push {
+        match self {
+            Input::Adis(a) => a.push(t_us, frame),
+            Input::Dbc(a) => a.push(t_us, frame),
+        }
+    }
+    fn counters(&self) -> &InputCounters {
+        match self {
+            Input::Adis(a) => &a.counters,
+            Input::Dbc(a) => &a.counters,
+        }
+    }
+}
+
 pub struct Pipeline {
-    assembler: Assembler,
+    assembler: Input,
     estimator: Estimator,
     ids: OutputConfig,
     /// Flags the shell adds to every status frame (bus silent, tx drops).
@@ -205,6 +230,27 @@ struct SpeedInput {
     counts: SpeedCounts,
 }
 
+/// The input path a config names. A DBC input whose plan was not built
+/// (a config parsed from text, not loaded from its file) takes no frame:
+/// every one is counted as `unknown_id`.
+fn input(cfg: &Config) -> Input {
+    if cfg.input.format.is_adis() {
+        return Input::Adis(Assembler::new(cfg.profile(), cfg.input.ids));
+    }
+    let plan = cfg.input.plan.0.clone().unwrap_or_else(|| {
+        Arc::new(DbcPlan {
+            path: String::new(),
+            msgs: Vec::new(),
+            channels: [None; 7],
+            assembly: crate::dbcin::Assembly::Window { us: 0 },
+            rate_hz: cfg.input.rate_hz,
+            temp_default: cfg.thermal.t0,
+            lines: Vec::new(),
+        })
+    });
+    Input::Dbc(DbcAssembler::new(plan))
+}
+
 impl Pipeline {
     /// A pipeline without a speed source.
     pub fn new(cfg: &Config) -> Pipeline {
@@ -227,7 +273,7 @@ impl Pipeline {
             }
         });
         Pipeline {
-            assembler: Assembler::new(p.clone(), cfg.input.ids),
+            assembler: input(cfg),
             estimator: Estimator::new(cfg),
             ids: cfg.output.clone(),
             extra_flags: 0,
@@ -282,7 +328,7 @@ impl Pipeline {
                 }
                 let est = self.estimator.step(&s);
                 self.mode_samples[(est.mode as usize).min(2)] += 1;
-                let sc = StatusCounters::from(&self.assembler.counters);
+                let sc = StatusCounters::from(self.assembler.counters());
                 let frames = encode(&est, &sc, &self.ids, self.extra_flags);
                 sink.output(&est, &frames);
             }
@@ -290,7 +336,7 @@ impl Pipeline {
     }
 
     pub fn counters(&self) -> &InputCounters {
-        &self.assembler.counters
+        self.assembler.counters()
     }
 
     /// What the estimator did (for summaries and the status).
@@ -329,9 +375,12 @@ impl Pipeline {
         &mut self.estimator
     }
 
-    /// The input IDs (for receive filters).
+    /// The ADIS input IDs (for receive filters; the DBC input's are in its plan).
     pub fn input_ids(&self) -> [u32; 4] {
-        self.assembler.ids().all()
+        match &self.assembler {
+            Input::Adis(a) => a.ids().all(),
+            Input::Dbc(_) => [u32::MAX; 4],
+        }
     }
 
     /// Seconds of samples per mode.

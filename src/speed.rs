@@ -115,7 +115,7 @@ pub fn unit_to_ms(unit: &str) -> Option<f64> {
 
 /// A parser's message as a terminal may show it: control characters
 /// escaped, each line cut at 160 characters.
-fn printable(msg: &str) -> String {
+pub(crate) fn printable(msg: &str) -> String {
     msg.lines()
         .map(|l| {
             let esc: String = l
@@ -238,20 +238,10 @@ impl SpeedDecoder {
     /// Load the DBC at `path` (`cfg.dbc` is not used).
     pub fn from_dbc(path: &Path, cfg: &SpeedConfig) -> Result<SpeedDecoder, SpeedError> {
         let name = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|source| SpeedError::Read { path: name.clone(), source })?;
-        if let Some(at) = bytes.iter().position(|b| b.is_ascii_control() && !b"\t\n\r\x0c".contains(b)) {
-            let line = bytes[..at].iter().filter(|b| **b == b'\n').count() + 1;
-            return Err(SpeedError::Parse {
-                path: name,
-                msg: format!("a binary file, not DBC text (control byte {:#04x} at line {line}, byte {at})", bytes[at]),
-            });
-        }
-        let text = match std::str::from_utf8(&bytes) {
-            Ok(t) => std::borrow::Cow::Borrowed(t),
-            // DBC editors write Windows-1252
-            Err(_) => can_dbc::decode_cp1252(&bytes)
-                .ok_or_else(|| SpeedError::Parse { path: name.clone(), msg: "neither UTF-8 nor Windows-1252 text".into() })?,
-        };
+        let text = read_dbc(path).map_err(|e| match e {
+            DbcRead::Io(source) => SpeedError::Read { path: name.clone(), source },
+            DbcRead::Text(msg) => SpeedError::Parse { path: name.clone(), msg },
+        })?;
         SpeedDecoder::from_dbc_text(&text, &name, cfg)
     }
 
@@ -378,6 +368,29 @@ impl SpeedDecoder {
             return Err(SpeedDrop::Implausible);
         }
         Ok(v)
+    }
+}
+
+/// Why a DBC file could not be read as text.
+#[derive(Debug)]
+pub(crate) enum DbcRead {
+    Io(std::io::Error),
+    Text(String),
+}
+
+/// A DBC file's text: UTF-8, or Windows-1252 as DBC editors write it; a
+/// binary file is refused with where its first control byte is.
+pub(crate) fn read_dbc(path: &Path) -> Result<String, DbcRead> {
+    let bytes = std::fs::read(path).map_err(DbcRead::Io)?;
+    if let Some(at) = bytes.iter().position(|b| b.is_ascii_control() && !b"\t\n\r\x0c".contains(b)) {
+        let line = bytes[..at].iter().filter(|b| **b == b'\n').count() + 1;
+        return Err(DbcRead::Text(format!("a binary file, not DBC text (control byte {:#04x} at line {line}, byte {at})", bytes[at])));
+    }
+    match String::from_utf8(bytes) {
+        Ok(t) => Ok(t),
+        Err(e) => can_dbc::decode_cp1252(e.as_bytes())
+            .map(|c| c.into_owned())
+            .ok_or_else(|| DbcRead::Text("neither UTF-8 nor Windows-1252 text".into())),
     }
 }
 

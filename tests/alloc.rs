@@ -103,3 +103,32 @@ fn daemon_output_path_does_not_allocate() {
     assert_eq!(sink.samples(), 30_000);
     assert_eq!(after - before, 0, "{} allocations in 10000 samples through BusSink", after - before);
 }
+
+#[test]
+fn dbc_input_path_does_not_allocate() {
+    // the MM7.10 example: three frames a sample, counters, CRCs, a validity signal
+    let cfg = Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/mm7p10.toml")).unwrap();
+    let plan = cfg.input.plan.0.clone().unwrap();
+    let frames: Vec<Vec<gyrocomp::dbcin::Encoded>> = (0..30_000u64)
+        .map(|k| {
+            let t = k as f64 / 100.0;
+            plan.encode(k, &[0.3 * t.sin(), 0.1, -0.2, 0.01 * t.cos(), 0.0, -1.0, 30.0 + t * 0.01])
+        })
+        .collect();
+    let mut pipe = Pipeline::new(&cfg);
+    let mut sink = NullSink;
+    let mut run = |range: std::ops::Range<usize>, pipe: &mut Pipeline| {
+        for k in range {
+            for f in &frames[k] {
+                let raw = RawFrame { id: f.id, extended: f.extended, remote: false, fd: false, data: &f.data };
+                pipe.push(k as u64 * 10_000, raw, &mut sink);
+            }
+        }
+    };
+    run(0..20_000, &mut pipe);
+    let before = allocs();
+    run(20_000..30_000, &mut pipe);
+    let after = allocs();
+    assert_eq!(pipe.counters().samples, 30_000);
+    assert_eq!(after - before, 0, "{} allocations in 10000 DBC samples", after - before);
+}

@@ -3,7 +3,8 @@
 # missing (python cantools, h5py, numpy, mcap and mcap-ros2-support; qemu, busybox, can-utils and a Debian kernel with the
 # CAN modules for the vcan VM; debootstrap for the systemd VM), then runs
 # `cargo test --release` (unit, integration, property, vcan and systemd tests)
-# and builds the benchmarks.
+# and builds the benchmarks; then the Python package's wheel and its pytest
+# suite (python/ci.sh, which installs maturin, pytest and numpy in a venv).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
@@ -25,3 +26,4 @@ bash tests/vm/prepare.sh
 cargo build --release --all-targets
 cargo test --release --test realdata -- --nocapture  # prints the real-data table, or "skipped: ../shared/realdata not found"
 cargo test --release -- --test-threads=2
+bash python/ci.sh

@@ -98,6 +98,7 @@
 
 pub mod chamber;
 pub mod gls;
+#[cfg(feature = "cli")]
 mod plot;
 pub mod read;
 mod render;
@@ -654,6 +655,7 @@ pub fn plot_files(dir: &Path, runs: usize) -> Vec<PathBuf> {
 /// `gyrocomp calibrate`: fit, print the report, write `--write` and `--plot`
 /// outputs (refusing an output that is an input, the config among them, and
 /// a log given twice, before anything is read).
+#[cfg(feature = "cli")]
 pub fn cli(
     cfg: &Config,
     config: Option<&Path>,

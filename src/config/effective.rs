@@ -12,6 +12,10 @@ impl Config {
         let mut c = self.clone();
         let p = self.profile();
         c.input.rate_hz = p.rate_hz;
+        if !self.input.format.is_adis() {
+            // the DBC gives the scales; printed as comments by `to_toml`
+            return c;
+        }
         c.input.gyro_lsb = Some(p.gyro_lsb);
         c.input.accel_lsb = Some(p.accel_lsb);
         c.input.magn_lsb = Some(p.magn_lsb);
@@ -24,6 +28,12 @@ impl Config {
     pub fn profile(&self) -> Profile {
         let mut p = builtin_profile(&self.input.profile).unwrap_or_else(|| builtin_profile("adis16448").unwrap());
         let i = &self.input;
+        if !i.format.is_adis() {
+            // a DBC-described unit: its rate as configured, no magnetometer;
+            // the scales are the DBC's (the ADIS ones are not used)
+            p.name = "dbc".into();
+            p.magnetometer = false;
+        }
         if i.rate_hz > 0.0 {
             p.rate_hz = i.rate_hz;
         }
@@ -46,14 +56,29 @@ impl Config {
     /// same effective config.
     pub fn to_toml(&self) -> String {
         let text = toml::to_string(&self.effective()).unwrap_or_else(|e| format!("# cannot serialise: {e}\n"));
-        let mut out = format!(
-            "# effective configuration: every key with its value in force; rate_hz and the scales are {}'s unless overridden\n",
-            self.input.profile
-        );
+        let mut out = if self.input.format.is_adis() {
+            format!(
+                "# effective configuration: every key with its value in force; rate_hz and the scales are {}'s unless overridden\n",
+                self.input.profile
+            )
+        } else {
+            "# effective configuration: every key with its value in force; the input is described by its DBC\n".to_string()
+        };
+        if let Some(plan) = &self.input.plan.0 {
+            out += &format!("# input mapping resolved from {}:\n", plan.path);
+            for l in &plan.lines {
+                out += &format!("#   {l}\n");
+            }
+        }
         let mut section = "";
         for line in text.lines() {
             if line.starts_with('[') {
                 section = line;
+            }
+            // a DBC input has no ADIS profile or frame IDs
+            let adis_only = section == "[input.ids]" || (section == "[input]" && line.starts_with("profile = "));
+            if !self.input.format.is_adis() && adis_only {
+                continue;
             }
             let hex = match line.split_once(" = ") {
                 Some((k, v)) if section == "[input.ids]" || (section == "[output]" && k.ends_with("_id")) => {

@@ -82,8 +82,57 @@ impl Config {
                 cfg.speed.dbc = dir.join(&cfg.speed.dbc).display().to_string();
             }
         }
-        cfg.check_speed_source().map_err(|(key, msg)| ConfigError::Invalid { path: p, at: locate(&text, &key), key, msg })?;
+        if !cfg.input.format.is_adis() && Path::new(&cfg.input.dbc).is_relative() {
+            if let Some(dir) = path.parent() {
+                // absolute, so that the printed effective config is valid wherever it is saved
+                let p = dir.join(&cfg.input.dbc);
+                cfg.input.dbc = std::fs::canonicalize(&p).unwrap_or(p).display().to_string();
+            }
+        }
+        let invalid = |(key, msg): (String, String)| ConfigError::Invalid { path: p.clone(), at: locate(&text, &key), key, msg };
+        cfg.load_input_dbc().map_err(invalid)?;
+        cfg.check_speed_source().map_err(invalid)?;
         Ok(cfg)
+    }
+
+    /// `[input] format = "dbc"`: read `input.dbc` (as it stands: `load` has
+    /// made it relative to the config file), resolve the mapping into the
+    /// decode plan and keep it; refuse a mapping without all six motion axes
+    /// (reduced-axis estimation is not supported yet) and a message whose ID
+    /// is one of gyrocomp's outputs.
+    pub fn load_input_dbc(&mut self) -> Result<(), (String, String)> {
+        if self.input.format.is_adis() {
+            return Ok(());
+        }
+        let path = &self.input.dbc;
+        let text = crate::speed::read_dbc(Path::new(path)).map_err(|e| {
+            let why = match e {
+                crate::speed::DbcRead::Io(e) => format!("cannot read the DBC: {e}"),
+                crate::speed::DbcRead::Text(m) => format!("not a valid DBC: {m}"),
+            };
+            ("input.dbc".to_string(), format!("{path}: {why}"))
+        })?;
+        let plan = crate::dbcin::DbcPlan::build(&self.input, &text, path, self.thermal.t0)?;
+        let missing = plan.missing_motion();
+        if !missing.is_empty() {
+            return Err((
+                "input.signals".into(),
+                format!(
+                    "{} not mapped: reduced-axis estimation (a sensor without all three gyro and all three accelerometer axes) is not yet supported",
+                    missing.join(", ")
+                ),
+            ));
+        }
+        for m in plan.msgs.iter().filter(|m| !m.extended) {
+            if let Some((k, _)) = self.output.sent().find(|(_, o)| *o == m.id) {
+                return Err((
+                    "input.signals".into(),
+                    format!("{path}: message {} has CAN ID {:#x}, which is {k}, a gyrocomp output", m.name, m.id),
+                ));
+            }
+        }
+        self.input.plan = super::dbcin::PlanSlot(Some(std::sync::Arc::new(plan)));
+        Ok(())
     }
 
     /// Load the DBC of `[speed]` (when configured) and check that its
@@ -94,13 +143,27 @@ impl Config {
             return Ok(());
         };
         let (id, ext) = dec.id();
-        if !ext && (self.input.ids.all().contains(&id) || self.output.sent().any(|(_, o)| o == id)) {
+        let imu = match &self.input.plan.0 {
+            Some(p) => p.find(id, ext).is_some(),
+            None => !ext && self.input.format.is_adis() && self.input.ids.all().contains(&id),
+        };
+        if imu || (!ext && self.output.sent().any(|(_, o)| o == id)) {
             return Err((
                 "speed.message".into(),
                 format!("{} has CAN ID {id:#x}, which is an IMU input or a gyrocomp output ID", dec.message()),
             ));
         }
         Ok(())
+    }
+
+    /// Refuse a DBC input for a command that reads the ADIS contract only.
+    pub fn adis_only(&self, command: &str) -> Result<(), String> {
+        if self.input.format.is_adis() {
+            return Ok(());
+        }
+        Err(format!(
+            "{command} reads the ADIS frames only, so far; this config's [input] is format = \"dbc\" (gyrocomp replay and gyrocomp run read it)"
+        ))
     }
 
     /// Parse and validate config text; `origin` names it in errors.

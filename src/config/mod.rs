@@ -11,6 +11,7 @@
 //! resolved profile and the printed effective configuration.
 
 pub mod arrays;
+pub mod dbcin;
 mod effective;
 mod load;
 mod schema;
@@ -21,6 +22,7 @@ pub use schema::{
     AutoBool, CanConfig, Config, DaemonConfig, EkfConfig, EstimatorConfig, InputConfig, MekfConfig, Mode, MountingConfig, OutputConfig,
     RestConfig, SpeedConfig, SwitchingConfig, ThermalConfig,
 };
+#[cfg(feature = "cli")]
 pub(crate) use validate::num;
 /// The ranges of `[input]`'s rate and scales (what `validate` accepts).
 pub use validate::{ACCEL_LSB, GYRO_LSB, MAGN_LSB, RATE_HZ, TEMP_LSB};

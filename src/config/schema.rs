@@ -6,6 +6,7 @@
 //! `config/gyrocomp.toml` and the `[mekf]` table of `docs/estimator.md`
 //! are checked against them by `tests/defaults.rs`.
 
+use super::dbcin::{InputFormat, PlanSlot, SampleConfig, SignalsConfig, UnitsConfig, ValidMap};
 use crate::adis::InputIds;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize};
@@ -95,6 +96,28 @@ pub struct InputConfig {
     pub magn_lsb: Option<f64>,
     pub temp_lsb: Option<f64>,
     pub temp_offset: Option<f64>,
+    /// `"adis"` (default: the four ADIS frames) or `"dbc"` (the keys below).
+    #[serde(skip_serializing_if = "InputFormat::is_adis")]
+    pub format: InputFormat,
+    /// The IMU's DBC file, relative to the config file (format = "dbc").
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub dbc: String,
+    /// J1939: the unit's source address; its messages match on PGN and this
+    /// address, whatever the priority bits.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub source_address: Option<u8>,
+    #[serde(skip_serializing_if = "SignalsConfig::is_empty")]
+    pub signals: SignalsConfig,
+    #[serde(skip_serializing_if = "UnitsConfig::is_empty")]
+    pub units: UnitsConfig,
+    #[serde(skip_serializing_if = "SampleConfig::is_empty")]
+    pub sample: SampleConfig,
+    /// "MESSAGE.SIGNAL" = the raw value it must hold for a sample to be fused.
+    #[serde(skip_serializing_if = "ValidMap::is_empty")]
+    pub valid: ValidMap,
+    /// The DBC decode plan, built by `Config::load` (format = "dbc").
+    #[serde(skip)]
+    pub plan: PlanSlot,
 }
 
 impl Default for InputConfig {
@@ -108,6 +131,14 @@ impl Default for InputConfig {
             magn_lsb: None,
             temp_lsb: None,
             temp_offset: None,
+            format: InputFormat::Adis,
+            dbc: String::new(),
+            source_address: None,
+            signals: SignalsConfig::default(),
+            units: UnitsConfig::default(),
+            sample: SampleConfig::default(),
+            valid: ValidMap::new(),
+            plan: PlanSlot::default(),
         }
     }
 }

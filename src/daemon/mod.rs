@@ -131,11 +131,27 @@ fn now_us() -> u64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_micros() as u64).unwrap_or(0)
 }
 
-/// Open the bus with receive filters for the input IDs (and the vehicle's
-/// speed message when `[speed]` is configured).
+/// Open the bus with receive filters for the input IDs (a DBC input's
+/// messages) and the vehicle's speed message when `[speed]` is configured.
+/// A classic CAN socket: a DBC input's CAN FD messages are read from logs
+/// (`replay`), not live yet.
 pub fn open_bus(cfg: &Config, speed: Option<(u32, bool)>) -> std::io::Result<CanSocket> {
     let s = CanSocket::open(&cfg.can.interface)?;
-    let mut filters: Vec<CanFilter> = cfg.input.ids.all().iter().map(|id| CanFilter::new(*id, EFF_RTR_MASK)).collect();
+    let mut filters: Vec<CanFilter> = match &cfg.input.plan.0 {
+        // a DBC input: its messages (J1939: any priority), extended ones with the EFF flag in id and mask
+        Some(plan) if !cfg.input.format.is_adis() => plan
+            .msgs
+            .iter()
+            .map(|m| {
+                if m.extended {
+                    CanFilter::new(m.id | libc::CAN_EFF_FLAG, m.mask | libc::CAN_EFF_FLAG | libc::CAN_RTR_FLAG)
+                } else {
+                    CanFilter::new(m.id, EFF_RTR_MASK)
+                }
+            })
+            .collect(),
+        _ => cfg.input.ids.all().iter().map(|id| CanFilter::new(*id, EFF_RTR_MASK)).collect(),
+    };
     if let Some((id, ext)) = speed {
         // an extended ID matches only with the EFF flag set in id and mask
         let flag = if ext { libc::CAN_EFF_FLAG } else { 0 };
@@ -149,6 +165,13 @@ pub fn open_bus(cfg: &Config, speed: Option<(u32, bool)>) -> std::io::Result<Can
         s.set_error_filter_drop_all()?;
     }
     Ok(s)
+}
+
+/// Whether a reload changes which input frames the kernel filters pass
+/// (the format, or a DBC input's messages; `Config`'s equality ignores the plan).
+fn input_filters_changed(new: &Config, old: &Config) -> bool {
+    let ids = |c: &Config| c.input.plan.0.as_ref().map(|p| p.msgs.iter().map(|m| (m.id, m.mask, m.extended)).collect::<Vec<_>>());
+    new.input.format != old.input.format || ids(new) != ids(old)
 }
 
 /// Ask for a larger receive buffer so bursts wait in the kernel, not get lost.
@@ -345,7 +368,10 @@ async fn daemon(config_path: PathBuf, mut cfg: Config) -> anyhow::Result<()> {
                             let was_speed = pipe.speed_id();
                             let axes = SavedAxes::of(pipe.estimator(), cfg.mounting.rotation);
                             let carry = pipe.estimator().learned().map(|l| (l, axes));
-                            let bus_changed = new.can.interface != cfg.can.interface || new.input.ids != cfg.input.ids || new.daemon.error_frames != cfg.daemon.error_frames;
+                            let bus_changed = new.can.interface != cfg.can.interface
+                                || new.input.ids != cfg.input.ids
+                                || input_filters_changed(&new, &cfg)
+                                || new.daemon.error_frames != cfg.daemon.error_frames;
                             cfg = new;
                             store = state_dir(&cfg).map(|d| Store::new(&d));
                             pipe = build_pipeline(&cfg, store.as_ref(), carry);

@@ -93,6 +93,29 @@ impl State {
         Learned { bias: self.bias, bias_sigma: self.bias_sigma.map(|s| (s * s + grow).sqrt().max(floor)), temp: self.temp }
     }
 
+    /// The state file's bytes, as [`Store::save`] writes them: the JSON
+    /// envelope (payload and its CRC-32) and a newline.
+    pub fn to_file_bytes(&self) -> std::io::Result<Vec<u8>> {
+        let payload = serde_json::to_string(self).map_err(std::io::Error::other)?;
+        let env = Envelope { crc32: crc32fast::hash(payload.as_bytes()), state: payload };
+        let mut bytes = serde_json::to_vec_pretty(&env).map_err(std::io::Error::other)?;
+        bytes.push(b'\n');
+        Ok(bytes)
+    }
+
+    /// A state file's bytes, checked as [`Store::load`] checks them (CRC,
+    /// fields, ranges); `name` names the file in errors.
+    pub fn from_file_bytes(bytes: &[u8], name: &str) -> Result<State, StateError> {
+        let corrupt = |e: String| StateError::Corrupt(name.to_string(), e);
+        let env: Envelope = serde_json::from_slice(bytes).map_err(|e| corrupt(e.to_string()))?;
+        if crc32fast::hash(env.state.as_bytes()) != env.crc32 {
+            return Err(corrupt("CRC mismatch".into()));
+        }
+        let st: State = serde_json::from_str(&env.state).map_err(|e| corrupt(e.to_string()))?;
+        st.valid().map_err(corrupt)?;
+        Ok(st)
+    }
+
     fn valid(&self) -> Result<(), String> {
         if self.version != VERSION {
             return Err(format!("version {} (want {VERSION})", self.version));
@@ -139,27 +162,18 @@ impl Store {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
             Err(e) => return Err(StateError::Io(name, e)),
         };
-        let env: Envelope = serde_json::from_slice(&text).map_err(|e| StateError::Corrupt(name.clone(), e.to_string()))?;
-        if crc32fast::hash(env.state.as_bytes()) != env.crc32 {
-            return Err(StateError::Corrupt(name, "CRC mismatch".into()));
-        }
-        let st: State = serde_json::from_str(&env.state).map_err(|e| StateError::Corrupt(name.clone(), e.to_string()))?;
-        st.valid().map_err(|e| StateError::Corrupt(name, e))?;
-        Ok(Some(st))
+        State::from_file_bytes(&text, &name).map(Some)
     }
 
     /// Save atomically: temp file, fsync, rename, fsync the directory.
     pub fn save(&self, st: &State) -> Result<(), StateError> {
         let name = self.path.display().to_string();
         let io = |e| StateError::Io(name.clone(), e);
-        let payload = serde_json::to_string(st).map_err(|e| io(std::io::Error::other(e)))?;
-        let env = Envelope { crc32: crc32fast::hash(payload.as_bytes()), state: payload };
-        let bytes = serde_json::to_vec_pretty(&env).map_err(|e| io(std::io::Error::other(e)))?;
+        let bytes = st.to_file_bytes().map_err(io)?;
         let tmp = self.path.with_extension("json.tmp");
         {
             let mut f = File::create(&tmp).map_err(io)?;
             f.write_all(&bytes).map_err(io)?;
-            f.write_all(b"\n").map_err(io)?;
             f.sync_all().map_err(io)?;
         }
         fs::rename(&tmp, &self.path).map_err(io)?;

@@ -234,6 +234,7 @@ fn run_ablate(a: &EvaluateArgs) -> Result<(), String> {
         Some(p) => Config::load(p).map_err(|e| e.to_string())?,
         None => Config::default(),
     };
+    cfg.adis_only("evaluate")?;
     if a.real.reference.is_some() || a.real.power_on_at.is_some() {
         return Err("--ablate runs on --seeds (the simulated families) or --realdata DIR".into());
     }
@@ -299,6 +300,7 @@ pub fn run(a: &EvaluateArgs) -> Result<(), String> {
         Some(p) => Config::load(p).map_err(|e| e.to_string())?,
         None => Config::default(),
     };
+    cfg.adis_only("evaluate")?;
     let mut note = String::new();
     if let (Some(dir), None, None) = (&a.input, &a.config, &run_config) {
         let p = cfg.profile();

@@ -478,6 +478,7 @@ pub fn dispatch(
         Some(p) => Config::load(p).map_err(|e| e.to_string())?,
         None => Config::default(),
     };
+    cfg.adis_only("evaluate")?;
     if let Some(p) = a.power_on_at {
         if !(p.is_finite() && p >= 0.0) {
             return Err(format!("--power-on-at must be >= 0 s, got {p}"));

@@ -78,6 +78,13 @@ pub struct SimulateArgs {
     /// on the bus either way).
     #[arg(long)]
     pub speed: bool,
+    /// Put the IMU on the bus in the format this DBC config describes
+    /// ([input] format = "dbc", docs/protocol.md#dbc-input), at its rate_hz:
+    /// imu.log holds its frames, config.toml its [input], its DBC is copied
+    /// beside them, and adis.log with adis.toml hold the same samples in the
+    /// ADIS contract at the same rate. Default: the ADIS contract only.
+    #[arg(long, value_name = "CONFIG")]
+    pub input_dbc: Option<PathBuf>,
 }
 
 /// Parse `ROLL,PITCH,YAW` (deg).
@@ -218,6 +225,9 @@ impl SimulateArgs {
         o.power_on_moving = self.power_on_moving;
         o.speed = self.speed;
         o.mounting = self.mounting.as_deref().map(parse_mounting).transpose()?;
+        if let Some(p) = &self.input_dbc {
+            o.input_dbc = Some(std::sync::Arc::new(super::dbcout::DbcSim::load(p)?));
+        }
         if let Some(p) = &self.model {
             o.model = Some(SensorModel::load(p)?);
         }
@@ -228,7 +238,7 @@ impl SimulateArgs {
     }
 
     fn inputs(&self) -> Vec<&Path> {
-        [self.model.as_deref(), self.ranges.as_deref()].into_iter().flatten().collect()
+        [self.model.as_deref(), self.ranges.as_deref(), self.input_dbc.as_deref()].into_iter().flatten().collect()
     }
 }
 

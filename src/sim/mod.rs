@@ -27,6 +27,7 @@
 //! seed and options give byte-identical files.
 
 pub mod cli;
+pub mod dbcout;
 pub mod model;
 pub mod motion;
 pub mod road;
@@ -79,6 +80,8 @@ pub struct SimOptions {
     pub mounting: Option<[f64; 3]>,
     /// Write a `[speed]` section (the wheel speeds of `car.dbc`) into `config.toml`.
     pub speed: bool,
+    /// Put the IMU on the bus in this DBC format (at its rate), with the ADIS twin beside it.
+    pub input_dbc: Option<std::sync::Arc<dbcout::DbcSim>>,
 }
 
 impl SimOptions {
@@ -95,6 +98,7 @@ impl SimOptions {
             power_on_moving: false,
             mounting: None,
             speed: false,
+            input_dbc: None,
         }
     }
 }
@@ -327,11 +331,16 @@ pub struct SimRun {
     pub config_toml: String,
     /// The wheel-speed source (urban).
     pub wheel: Option<WheelParams>,
+    /// `--input-dbc`: the config of `adis.log`, the same unit in the ADIS contract.
+    pub adis_twin: Option<String>,
 }
 
 /// Prepare a run: draw the motion, the sensor and the calibration.
 pub fn prepare(o: &SimOptions) -> Result<SimRun, String> {
-    let profile = builtin_profile(&o.profile).ok_or_else(|| format!("unknown profile {:?}", o.profile))?;
+    let mut profile = builtin_profile(&o.profile).ok_or_else(|| format!("unknown profile {:?}", o.profile))?;
+    if let Some(d) = &o.input_dbc {
+        profile.rate_hz = d.plan.rate_hz;
+    }
     if !scenario::SCENARIOS.contains(&o.scenario.as_str()) {
         return Err(format!("unknown scenario {:?} (known: {})", o.scenario, scenario::SCENARIOS.join(", ")));
     }
@@ -373,23 +382,37 @@ pub fn prepare(o: &SimOptions) -> Result<SimRun, String> {
         _ => (25.0, [0.0; 3]),
     };
     let p1c: Vec<String> = p1.iter().map(|p| format!("{:.7}", p * (1.0 + sym(&mut cal, o.thermal_error)))).collect();
-    let mut config_toml = format!(
-        "# gyrocomp config for simulated unit {} seed {}: thermal slope known to +-{} %.\n[input]\nprofile = \"{}\"\n\n[thermal]\nt0 = {:.3}\np1 = [{}]\np2 = [0.0, 0.0, 0.0]\n",
+    let adis_input = format!("[input]\nprofile = \"{}\"\n", o.profile);
+    let input = match &o.input_dbc {
+        Some(d) => d.input_toml.clone(),
+        None => adis_input.clone(),
+    };
+    let header = format!(
+        "# gyrocomp config for simulated unit {} seed {}: thermal slope known to +-{} %.\n",
         o.scenario,
         o.seed,
-        o.thermal_error * 100.0,
-        o.profile,
-        t0,
-        p1c.join(", ")
+        o.thermal_error * 100.0
     );
+    let rest = format!("\n[thermal]\nt0 = {:.3}\np1 = [{}]\np2 = [0.0, 0.0, 0.0]\n", t0, p1c.join(", "));
+    let mut config_toml = format!("{header}{input}{rest}");
+    // the same unit in the ADIS contract at the DBC format's rate (`--input-dbc`)
+    // (its magnetometer off: the DBC unit has none, and the two are to see the same)
+    let mut adis_twin = o
+        .input_dbc
+        .as_ref()
+        .map(|d| format!("{header}{adis_input}rate_hz = {:?}\n{rest}\n[estimator]\nuse_magnetometer = false\n", d.plan.rate_hz));
     let lever_arm = spec.road.as_ref().map(|r| r.lever_arm);
     if o.mounting.is_some() || lever_arm.is_some() {
         let fmt = |v: [f64; 3]| v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(", ");
-        config_toml += &format!(
+        let m = format!(
             "\n[mounting]\nrotation = [{}]\nlever_arm = [{}]\n",
             fmt(o.mounting.unwrap_or([0.0; 3])),
             fmt(lever_arm.unwrap_or([0.0; 3]))
         );
+        config_toml += &m;
+        if let Some(t) = adis_twin.as_mut() {
+            *t += &m;
+        }
     }
     // The wheel-speed source: drawn on its own stream, whatever the flags.
     let wheel = scenario::ROAD_SCENARIOS.contains(&o.scenario.as_str()).then(|| {
@@ -407,13 +430,20 @@ pub fn prepare(o: &SimOptions) -> Result<SimRun, String> {
         }
     });
     if o.speed {
-        config_toml += &format!(
+        let sp = format!(
             "\n# Wheel speeds from the car's bus (car.dbc beside this file); the tyre scale error is not known here.\n\
              [speed]\ndbc = \"car.dbc\"\nmessage = \"{}\"\nsignals = [\"{}\", \"{}\"]\nscale = 1.0\ntimeout_s = 0.5\n",
             wheel::WHEEL_SPEEDS_MESSAGE,
             wheel::REAR_SIGNALS[0],
             wheel::REAR_SIGNALS[1]
         );
+        config_toml += &sp;
+        if let Some(t) = adis_twin.as_mut() {
+            *t += &sp;
+        }
+    }
+    if let Some(d) = &o.input_dbc {
+        dbcout::check_ids(d, wheel.as_ref().map(|w| w.id))?;
     }
     let info = ScenarioInfo {
         scenario: o.scenario.clone(),
@@ -430,7 +460,7 @@ pub fn prepare(o: &SimOptions) -> Result<SimRun, String> {
         wheel_speeds: wheel.clone(),
         stats: None,
     };
-    Ok(SimRun { info, spec, model, profile, config_toml, wheel })
+    Ok(SimRun { info, spec, model, profile, config_toml, wheel, adis_twin })
 }
 
 /// Streams `(truth, measured, raw sample)` for a prepared run.
@@ -555,7 +585,10 @@ pub fn simulate(o: &SimOptions, dir: &Path) -> Result<SimFiles, String> {
     let (bias_p, mut bias) = create("bias.csv")?;
     let is_road = run.spec.road.is_some();
     let mut vehicle = if is_road { Some(create("vehicle.csv")?) } else { None };
-    let mut log = LogWriter::new(log_f, "vcan0");
+    let (mut log, mut twin) = match &o.input_dbc {
+        None => (Some(LogWriter::new(log_f, "vcan0")), None),
+        Some(d) => (None, Some(dbcout::Writer::new(d, log_f, create(dbcout::TWIN_FILES[0])?.1))),
+    };
     truth.write_all(TRUTH_HEADER.as_bytes()).map_err(io_err(&truth_p))?;
     bias.write_all(BIAS_HEADER.as_bytes()).map_err(io_err(&bias_p))?;
     if let Some((p, f)) = vehicle.as_mut() {
@@ -564,9 +597,15 @@ pub fn simulate(o: &SimOptions, dir: &Path) -> Result<SimFiles, String> {
     let mut acc = StatsAcc::new(run.profile.rate_hz);
     let (mut n, mut nw) = (0u64, 0u64);
     for s in bus(&run, o.seed) {
-        for f in s.frames() {
-            log.frame(f.t_us, f.id, &f.data).map_err(io_err(&log_p))?;
-            nw += u64::from(f.id == wheel::WHEEL_SPEEDS_ID);
+        match (log.as_mut(), twin.as_mut()) {
+            (Some(log), _) => {
+                for f in s.frames() {
+                    log.frame(f.t_us, f.id, &f.data).map_err(io_err(&log_p))?;
+                    nw += u64::from(f.id == wheel::WHEEL_SPEEDS_ID);
+                }
+            }
+            (None, Some(t)) => nw += t.sample(&s).map_err(io_err(&log_p))?,
+            (None, None) => {}
         }
         let (tr, m) = (&s.truth, &s.measured);
         write_truth_row(&mut truth, tr).map_err(io_err(&truth_p))?;
@@ -581,7 +620,12 @@ pub fn simulate(o: &SimOptions, dir: &Path) -> Result<SimFiles, String> {
     if is_road {
         run.info.stats = Some(acc.finish());
     }
-    log.finish().map_err(io_err(&log_p))?.commit().map_err(io_err(&log_p))?;
+    if let Some(log) = log {
+        log.finish().map_err(io_err(&log_p))?.commit().map_err(io_err(&log_p))?;
+    }
+    if let Some(t) = twin {
+        t.commit().map_err(io_err(&log_p))?;
+    }
     truth.commit().map_err(io_err(&truth_p))?;
     bias.commit().map_err(io_err(&bias_p))?;
     if let Some((p, f)) = vehicle {
@@ -596,6 +640,10 @@ pub fn simulate(o: &SimOptions, dir: &Path) -> Result<SimFiles, String> {
     write("config.toml", &run.config_toml)?;
     if run.wheel.is_some() {
         write("car.dbc", wheel::EXAMPLE_DBC)?;
+    }
+    if let (Some(d), Some(twin)) = (&o.input_dbc, &run.adis_twin) {
+        write(&d.dbc_name, &d.dbc_text)?;
+        write(dbcout::TWIN_FILES[1], twin)?;
     }
     Ok(SimFiles { dir: dir.to_path_buf(), samples: n, wheel_frames: nw, info: run.info })
 }

@@ -228,7 +228,7 @@ impl Mekf {
             return;
         }
         if still {
-            self.pulls.sum_still(a, self.c[2]);
+            self.pulls.sum_still(a, self.core.c()[2]);
             return;
         }
         if !self.pulls.armed {
@@ -279,7 +279,7 @@ impl Mekf {
         // for one pull-away: open it by the speed that pull-away reached
         let dv = accel * G * PULL_WINDOW_S;
         for i in 0..3 {
-            self.cov[VE + i][VE + i] += dv * dv;
+            self.core.add_cov(VE + i, VE + i, dv * dv);
         }
     }
 

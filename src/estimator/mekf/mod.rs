@@ -41,6 +41,7 @@
 
 pub mod aid;
 mod context;
+mod core;
 mod forward_axis;
 mod gravity_lp;
 mod kalman;
@@ -49,6 +50,7 @@ mod rules;
 mod supervise;
 mod tick;
 use context::{FieldWatch, GravityWatch};
+use core::{Core, ProcessNoise};
 
 use aid::{tilt_innovation, FreeGravity, HeadingAid, LevelWindow, VelocityRefusals, WheelSpeed};
 pub use aid::{Aid, AidCounts, AidReport, AidStatus, AidWord, Rows, Why};
@@ -277,12 +279,8 @@ impl std::fmt::Display for Quietest {
 pub struct Mekf {
     p: MekfParams,
     started: bool,
-    q: Quat,
-    c: Mat3,
-    /// Bias, rad/s.
-    bias: [f64; 3],
-    v: [f64; 3],
-    scale: f64,
+    /// State and covariance (`core`).
+    core: Core,
     /// Low-passed specific force in the navigation frame, g, and the
     /// motion band's mean square (None until started).
     f_lp: Option<GravityLp>,
@@ -295,8 +293,6 @@ pub struct Mekf {
     /// (`forward_axis`).
     axes: VehicleAxes,
     pulls: PullAways,
-    cov: [[f64; N]; N],
-    dx: [f64; N],
     acc: Accum,
     rest: RestDetector,
     /// Gravity's size as this unit measures it, for the rest detector.
@@ -379,11 +375,6 @@ pub struct Mekf {
     /// The rest detector's smallest mean square deviations over the run
     /// (gyro (rad/s)^2, specific force g^2; `Mekf::counters` reports them).
     quietest_var: Option<[f64; 2]>,
-    /// While scoring: the log-likelihood of every scalar measurement since
-    /// the start, given this filter's prediction (`-(min(NIS, gate) + ln S) / 2`
-    /// each), for comparing power-on hypotheses (`super::hypotheses`).
-    scoring: bool,
-    log_likelihood: f64,
     /// What the last `step` returned (mode, flags, ratio).
     last_step: (u8, u16, f64),
 }
@@ -392,21 +383,16 @@ impl Mekf {
     pub fn new(p: MekfParams, switching: Switching) -> Mekf {
         let rest = RestDetector::new(p.rest);
         let axes = VehicleAxes::new(0.0, p.lever);
+        let core = Core::new(p.speed_aided);
         Mekf {
             p,
             started: false,
-            q: [1.0, 0.0, 0.0, 0.0],
-            c: quat::to_matrix(&[1.0, 0.0, 0.0, 0.0]),
-            bias: [0.0; 3],
-            v: [0.0; 3],
-            scale: 0.0,
+            core,
             f_lp: None,
             c_lag: quat::to_matrix(&[1.0, 0.0, 0.0, 0.0]),
             level: LevelWindow::default(),
             axes,
             pulls: PullAways::default(),
-            cov: [[0.0; N]; N],
-            dx: [0.0; N],
             acc: Accum::default(),
             rest,
             last_rest: None,
@@ -450,8 +436,6 @@ impl Mekf {
             rest_point: None,
             counters: MekfCounters::default(),
             quietest_var: None,
-            scoring: false,
-            log_likelihood: 0.0,
             last_step: (2, 0, 1.0),
         }
     }
@@ -470,7 +454,7 @@ impl Mekf {
         self.body_f_lp = *accel;
         self.f_lp = None;
         self.initialise([roll, pitch, yaw], bias, bias_sigma);
-        self.c_lag = self.c;
+        self.c_lag = *self.core.c();
         self.bias_known = known;
         self.bias_sigma_cache = self.bias_sigma();
         // with the car's own speed it is a vehicle
@@ -492,35 +476,29 @@ impl Mekf {
     pub fn set_speed_hypothesis(&mut self, u: f64, sigma: f64) {
         // the car's axes in the navigation frame: E = C A^T, column k the
         // car's axis k (A's row k, in the body) turned by the attitude
-        let e: [[f64; 3]; 3] = std::array::from_fn(|k| rotate(&self.c, &self.axes.rows[k]));
-        self.v = e[0].map(|x| x * u);
+        let e: [[f64; 3]; 3] = std::array::from_fn(|k| rotate(self.core.c(), &self.axes.rows[k]));
+        self.core.set_velocity(e[0].map(|x| x * u));
         let s2 = self.p.init_speed_sigma * self.p.init_speed_sigma;
         let d = [sigma * sigma, s2, s2];
         // E diag(d) E^T: the forward speed's variance along the car's x axis
-        for i in 0..3 {
-            for j in 0..3 {
-                self.cov[VE + i][VE + j] = (0..3).map(|k| e[k][i] * d[k] * e[k][j]).sum();
-            }
-        }
+        let m: Mat3 = std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| e[k][i] * d[k] * e[k][j]).sum()));
+        self.core.set_velocity_cov(&m);
         self.set_scoring(true);
     }
 
     /// Start or stop accumulating the log-likelihood (see `log_likelihood`).
     pub fn set_scoring(&mut self, on: bool) {
-        self.scoring = on;
-        if on {
-            self.log_likelihood = 0.0;
-        }
+        self.core.set_scoring(on);
     }
 
     /// The log-likelihood of the measurements since scoring started.
     pub fn log_likelihood(&self) -> f64 {
-        self.log_likelihood
+        self.core.log_likelihood()
     }
 
     /// The bias, rad/s.
     pub fn bias(&self) -> [f64; 3] {
-        self.bias
+        *self.core.bias()
     }
 
     /// The temperature (deg C) and bias (deg/s) of the last tick that
@@ -568,21 +546,25 @@ impl Mekf {
 
     /// Attitude as Z-Y-X Euler angles, rad.
     pub fn euler(&self) -> [f64; 3] {
-        quat::euler(&self.c)
+        quat::euler(self.core.c())
     }
 
     pub fn quaternion(&self) -> Quat {
-        self.q
+        *self.core.q()
     }
 
     /// 1-sigma of the bias, rad/s.
     pub fn bias_sigma(&self) -> [f64; 3] {
-        [self.cov[BI][BI].max(0.0).sqrt(), self.cov[BI + 1][BI + 1].max(0.0).sqrt(), self.cov[BI + 2][BI + 2].max(0.0).sqrt()]
+        [
+            self.core.cov()[BI][BI].max(0.0).sqrt(),
+            self.core.cov()[BI + 1][BI + 1].max(0.0).sqrt(),
+            self.core.cov()[BI + 2][BI + 2].max(0.0).sqrt(),
+        ]
     }
 
     /// Velocity (NED, m/s).
     pub fn velocity(&self) -> [f64; 3] {
-        self.v
+        *self.core.v()
     }
 
     /// The counters, with the rest detector's quietest deviations against
@@ -600,14 +582,14 @@ impl Mekf {
 
     /// Forward speed at the rear axle, m/s.
     pub fn forward_speed(&self) -> f64 {
-        let vb = rotate_t(&self.c, &self.v);
+        let vb = rotate_t(self.core.c(), self.core.v());
         let x = self.axes.rows[0];
         x[0] * vb[0] + x[1] * vb[1] + x[2] * vb[2]
     }
 
     /// The wheel-speed scale error estimate.
     pub fn speed_scale(&self) -> f64 {
-        self.scale
+        self.core.scale()
     }
 
     /// Whether the vehicle model is in use.
@@ -627,7 +609,7 @@ impl Mekf {
 
     /// The covariance (for tests).
     pub fn covariance(&self) -> &[[f64; N]; N] {
-        &self.cov
+        self.core.cov()
     }
 
     /// The latest wheel speed (m/s) while fresh, None when stale or absent;
@@ -638,7 +620,7 @@ impl Mekf {
     }
 
     fn state_is_finite(&self) -> bool {
-        self.q.iter().all(|v| v.is_finite()) && self.bias.iter().all(|v| v.is_finite()) && self.v.iter().all(|v| v.is_finite())
+        self.core.is_finite()
     }
 
     /// One sample; returns (mode, flags, `|a| / g0` as the switching policy
@@ -670,18 +652,14 @@ impl Mekf {
     /// deg/s) moved into the bias first. The first sample after a counter
     /// gap also turns the velocity's lever-arm part to the rate now.
     fn corrected_rate(&mut self, gyro: &[f64; 3], dbias: &[f64; 3]) -> [f64; 3] {
-        for i in 0..3 {
-            self.bias[i] += dbias[i] * D2R;
-        }
-        let w = [gyro[0] - self.bias[0], gyro[1] - self.bias[1], gyro[2] - self.bias[2]];
+        self.core.add_bias(&[dbias[0] * D2R, dbias[1] * D2R, dbias[2] * D2R]);
+        let w = [gyro[0] - self.core.bias()[0], gyro[1] - self.core.bias()[1], gyro[2] - self.core.bias()[2]];
         if self.lever_pending {
             // The velocity is the sensor's: it holds the lever arm's turn
             // (ω × l) at the rate before the gap. Turn it to the rate now.
             let dw = [w[0] - self.last_w[0], w[1] - self.last_w[1], w[2] - self.last_w[2]];
-            let d = rotate(&self.c, &cross(&dw, &self.axes.lever));
-            for i in 0..3 {
-                self.v[i] += d[i];
-            }
+            let d = rotate(self.core.c(), &cross(&dw, &self.axes.lever));
+            self.core.add_velocity(&d);
             self.lever_pending = false;
         }
         self.last_w = w;
@@ -706,8 +684,8 @@ impl Mekf {
     /// rate (rad/s) the level-rate window and the motion model read.
     fn propagate_sample(&mut self, s: &StepIn, gyro: &[f64; 3], w: &[f64; 3], wn: f64) {
         let dt = s.dt;
-        self.integrate_attitude(w, dt);
-        let f = rotate(&self.c, &s.accel);
+        self.core.integrate_attitude(w, dt);
+        let f = rotate(self.core.c(), &s.accel);
         match self.f_lp.as_mut() {
             None => self.f_lp = Some(GravityLp::new(&f, &self.lp_gains)),
             Some(lp) => lp.push(&f, &self.lp_gains),
@@ -718,15 +696,12 @@ impl Mekf {
         // gravity; f scaled by the rests' |f|) were measured on the
         // simulator and the real recordings: none better beyond noise.
         let gl = s.g0 * G;
-        let g_nav = if self.learns_level_rate() { rotate(&self.c, gyro) } else { [0.0; 3] };
-        for i in 0..3 {
-            self.v[i] += f[i] * gl * dt;
-        }
-        self.v[2] += gl * dt;
+        let g_nav = if self.learns_level_rate() { rotate(self.core.c(), gyro) } else { [0.0; 3] };
+        self.core.integrate_velocity(&f, gl, dt);
         let a = &mut self.acc;
         for i in 0..3 {
             for j in 0..3 {
-                a.s_c[i][j] += self.c[i][j] * dt;
+                a.s_c[i][j] += self.core.c()[i][j] * dt;
             }
             a.s_cg[i] += g_nav[i] * dt;
             a.dv[i] += f[i] * gl * dt;
@@ -734,23 +709,9 @@ impl Mekf {
         a.t += dt;
         a.turned += wn * dt;
         // the turn about the vertical: the heading's share of a scale error
-        let wz = self.c[2][0] * w[0] + self.c[2][1] * w[1] + self.c[2][2] * w[2];
+        let wz = self.core.c()[2][0] * w[0] + self.core.c()[2][1] * w[1] + self.core.c()[2][2] * w[2];
         a.turned_z += wz.abs() * dt;
         self.watch_vehicle_model(gyro, &s.accel);
-    }
-
-    /// Turn the attitude by the bias-corrected rate `w` (rad/s) over `dt`,
-    /// renormalise the quaternion and refresh its matrix.
-    fn integrate_attitude(&mut self, w: &[f64; 3], dt: f64) {
-        let dq = quat::from_rotvec(&[w[0] * dt, w[1] * dt, w[2] * dt]);
-        self.q = quat::mul(&self.q, &dq);
-        // first-order renormalisation: |q| stays within 1e-15 of 1
-        let n2 = self.q[0] * self.q[0] + self.q[1] * self.q[1] + self.q[2] * self.q[2] + self.q[3] * self.q[3];
-        let k = 1.5 - 0.5 * n2;
-        for v in self.q.iter_mut() {
-            *v *= k;
-        }
-        self.c = quat::to_matrix(&self.q);
     }
 
     /// The magnetometer decision, once: as configured, or (auto) whether the
@@ -786,7 +747,7 @@ impl Mekf {
             self.rest.reset();
             None
         } else {
-            Some(self.rest.push(gyro, &s.accel, dt.max(1e-6), self.g_ref.get(), &self.bias, bs))
+            Some(self.rest.push(gyro, &s.accel, dt.max(1e-6), self.g_ref.get(), self.core.bias(), bs))
         };
         // g0 is gravity only if the unit was steady while it was measured
         // (powered on while driving, it holds the car's acceleration); then
@@ -837,7 +798,7 @@ impl Mekf {
                 self.started = false;
                 return flags::RESYNC;
             }
-        } else if !self.q[0].is_finite() {
+        } else if !self.core.q()[0].is_finite() {
             self.started = false;
             return flags::RESYNC;
         }
@@ -847,30 +808,26 @@ impl Mekf {
     /// The state at power-on (and at a restart): the attitude given, the
     /// bias and its sigma, the velocity unknown, no speed scale error.
     fn initialise(&mut self, euler: [f64; 3], bias: [f64; 3], bias_sigma: [f64; 3]) {
-        self.q = quat::from_euler(euler[0], euler[1], euler[2]);
-        self.c = quat::to_matrix(&self.q);
-        self.bias = bias;
-        self.v = [0.0; 3];
-        self.scale = 0.0;
         self.free_gravity.held_s = 0.0;
         self.tilt_anchored = false;
         self.tilt_settled = false;
-        self.cov = [[0.0; N]; N];
         let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
+        let mut var = [0.0; N];
         for i in 0..3 {
-            self.cov[TH + i][TH + i] = a;
-            self.cov[BI + i][BI + i] = bias_sigma[i] * bias_sigma[i];
-            self.cov[VE + i][VE + i] = self.p.init_speed_sigma * self.p.init_speed_sigma;
+            var[TH + i] = a;
+            var[BI + i] = bias_sigma[i] * bias_sigma[i];
+            var[VE + i] = self.p.init_speed_sigma * self.p.init_speed_sigma;
         }
         // heading is far less known than tilt until the magnetometer speaks
-        self.cov[TH + 2][TH + 2] = (std::f64::consts::PI / 2.0).powi(2);
+        var[TH + 2] = (std::f64::consts::PI / 2.0).powi(2);
         if self.p.speed_aided {
-            self.cov[SC][SC] = self.p.init_scale_sigma * self.p.init_scale_sigma;
+            var[SC] = self.p.init_scale_sigma * self.p.init_scale_sigma;
         }
+        self.core.reset(quat::from_euler(euler[0], euler[1], euler[2]), bias, &var);
     }
 
     fn bias_deg(&self) -> [f64; 3] {
-        [self.bias[0] / D2R, self.bias[1] / D2R, self.bias[2] / D2R]
+        [self.core.bias()[0] / D2R, self.core.bias()[1] / D2R, self.core.bias()[2] / D2R]
     }
 }
 

@@ -7,18 +7,17 @@ fn filter() -> Mekf {
     let sw = Switching::new(&crate::config::SwitchingConfig::default(), 200.0);
     let mut m = Mekf::new(MekfParams { lever: [0.9, 0.1, -0.3], speed_aided: true, ..p }, sw);
     m.start(&[0.1, -0.2, -0.97], &[0.2, 0.05, 0.4], [0.01, -0.02, 0.03], [0.01; 3], true);
-    m.q = quat::from_euler(0.2, -0.3, 1.1);
-    m.c = quat::to_matrix(&m.q);
-    m.v = [8.0, -3.0, 0.5];
-    m.scale = 0.02;
+    m.core.set_attitude(quat::from_euler(0.2, -0.3, 1.1));
+    m.core.set_velocity([8.0, -3.0, 0.5]);
+    m.core.set_scale(0.02);
     m
 }
 
 /// Apply an error-state step the way `inject` does, on a copy.
 fn perturbed(m: &Mekf, k: usize, eps: f64) -> Mekf {
     let mut c = m.clone();
-    c.dx = [0.0; N];
-    c.dx[k] = eps;
+    c.core.clear_dx();
+    c.core.set_dx(k, eps);
     c.inject();
     c
 }
@@ -30,7 +29,7 @@ fn measurement_rows_match_finite_differences() {
     let mut m = filter();
     // the rate is the measured gyro less the bias the state holds
     let gyro = [0.05, -0.1, 0.3];
-    let omega = |f: &Mekf| [gyro[0] - f.bias[0], gyro[1] - f.bias[1], gyro[2] - f.bias[2]];
+    let omega = |f: &Mekf| [gyro[0] - f.bias()[0], gyro[1] - f.bias()[1], gyro[2] - f.bias()[2]];
     let eps = 1e-6;
     // the car's axes as configured, and turned to its pull-aways (the
     // lever arm, in the car's axes, turned with them); and a free unit's
@@ -54,7 +53,7 @@ fn measurement_rows_match_finite_differences() {
                 let fd = (r1 - r0) / eps;
                 assert!((fd - h[k]).abs() < 1e-4 * (1.0 + h[k].abs()), "yaw {yaw} car roll state {k}: {fd} vs {}", h[k]);
             }
-            let e = quat::euler(&m.c);
+            let e = quat::euler(m.core.c());
             if yaw == 0.0 {
                 assert!((r0 - e[0]).abs() < 1e-9, "the car's roll {r0} is the unit's {} with its axes", e[0]);
             }
@@ -63,7 +62,7 @@ fn measurement_rows_match_finite_differences() {
         // and vertical rows read zero, the forward one its speed
         if vehicle {
             let mut c = m.clone();
-            c.v = rotate(&c.c, &c.axes.rows[0].map(|v| v * 8.0));
+            c.core.set_velocity(rotate(c.core.c(), &c.axes.rows[0].map(|v| v * 8.0)));
             let rows: Vec<f64> = (0..3).map(|axis| c.body_velocity_row(axis, &[0.0; 3]).0).collect();
             assert!((rows[0] - 8.0).abs() < 1e-12 && rows[1].abs() < 1e-12 && rows[2].abs() < 1e-12, "yaw {yaw}: {rows:?}");
         }
@@ -73,10 +72,10 @@ fn measurement_rows_match_finite_differences() {
     // heading: the prediction is the heading of C m (the field fixed in NED)
     let mb = [0.1, 0.3, 0.35];
     let psi = |f: &Mekf| {
-        let n = rotate(&f.c, &mb);
+        let n = rotate(f.core.c(), &mb);
         n[1].atan2(n[0])
     };
-    let n = rotate(&m.c, &mb);
+    let n = rotate(m.core.c(), &mb);
     let h2 = n[0] * n[0] + n[1] * n[1];
     let h = [n[0] * n[2] / h2, n[1] * n[2] / h2, -1.0];
     for k in 0..3 {
@@ -86,12 +85,12 @@ fn measurement_rows_match_finite_differences() {
         assert!((fd - h[k]).abs() < 1e-4, "heading state {k}: {fd} vs {}", h[k]);
     }
     // gravity: u = C f/|f| for the f of a level-consistent truth
-    let f_true = rotate_t(&m.c, &[0.0, 0.0, -1.0]);
+    let f_true = rotate_t(m.core.c(), &[0.0, 0.0, -1.0]);
     for k in 0..3 {
         let t = perturbed(&m, k, eps);
         // f is what the true attitude sees; the estimate m rotates it
-        let f = rotate_t(&t.c, &[0.0, 0.0, -1.0]);
-        let u = rotate(&m.c, &f);
+        let f = rotate_t(t.core.c(), &[0.0, 0.0, -1.0]);
+        let u = rotate(m.core.c(), &f);
         let want = match k {
             0 => [0.0, -eps, 0.0],
             1 => [eps, 0.0, 0.0],
@@ -138,18 +137,18 @@ fn transition_matches_propagating_a_perturbed_state() {
         let mut b = perturbed(&base, k, eps);
         run(&mut b);
         // the difference of the end states, in error coordinates
-        let dq = quat::mul(&b.q, &[a.q[0], -a.q[1], -a.q[2], -a.q[3]]);
+        let dq = quat::mul(b.core.q(), &[a.core.q()[0], -a.core.q()[1], -a.core.q()[2], -a.core.q()[3]]);
         let dth = [2.0 * dq[1] / eps, 2.0 * dq[2] / eps, 2.0 * dq[3] / eps];
-        let db: Vec<f64> = (0..3).map(|i| (b.bias[i] - a.bias[i]) / eps).collect();
-        let dv: Vec<f64> = (0..3).map(|i| (b.v[i] - a.v[i]) / eps).collect();
+        let db: Vec<f64> = (0..3).map(|i| (b.bias()[i] - a.bias()[i]) / eps).collect();
+        let dv: Vec<f64> = (0..3).map(|i| (b.core.v()[i] - a.core.v()[i]) / eps).collect();
         // Φ column k from the accumulated blocks
         let mut p = [[0.0; N]; N];
         p[k][k] = 1.0;
         let mut m = a.clone();
-        m.cov = p;
+        m.core.set_cov(p);
         m.propagate_noiseless();
         // P' = Φ e_k e_k^T Φ^T: column k of Φ is P'[.][k] / Φ[k][k]
-        let col: Vec<f64> = (0..N).map(|i| m.cov[i][k]).collect();
+        let col: Vec<f64> = (0..N).map(|i| m.core.cov()[i][k]).collect();
         let want: Vec<f64> = dth.iter().chain(db.iter()).chain(dv.iter()).copied().collect();
         for i in 0..9 {
             assert!((col[i] - want[i]).abs() < 2e-3 * (1.0 + want[i].abs()), "Φ[{i}][{k}]: {} vs {}", col[i], want[i]);
@@ -167,33 +166,38 @@ fn a_cars_resync_opens_only_what_the_constraint_cannot_see() {
     let mut m = filter();
     m.vehicle = true;
     // a car drives along its x axis
-    m.v = rotate(&m.c, &[8.0, 0.0, 0.0]);
+    m.core.set_velocity(rotate(m.core.c(), &[8.0, 0.0, 0.0]));
     let omega = [0.0, 0.0, 0.2];
     let hph = |m: &Mekf, axis: usize| {
         let (_, h) = m.body_velocity_row(axis, &omega);
-        (0..N).map(|i| (0..N).map(|j| h[i] * m.cov[i][j] * h[j]).sum::<f64>()).sum::<f64>()
+        (0..N).map(|i| (0..N).map(|j| h[i] * m.core.cov()[i][j] * h[j]).sum::<f64>()).sum::<f64>()
     };
     let before = [hph(&m, 1), hph(&m, 2)];
-    let th0 = m.cov[TH][TH];
-    let fwd0 = m.cov;
+    let th0 = m.core.cov()[TH][TH];
+    let fwd0 = *m.core.cov();
     m.resync(4.0);
     for (axis, b) in [1, 2].into_iter().zip(before) {
         let a = hph(&m, axis);
         assert!((a - b).abs() < 1e-9 * (1.0 + b), "constraint {axis}: h P h^T {b} -> {a}");
     }
-    let opened = (m.cov[TH][TH] - th0).sqrt();
+    let opened = (m.core.cov()[TH][TH] - th0).sqrt();
     assert!((opened - 5.0 * D2R).abs() < 1e-12, "tilt opened by {} deg", opened / D2R);
     // the speed along the body x axis opened by 4 + (3 x 4)^2
-    let cx = [m.c[0][0], m.c[1][0], m.c[2][0]];
+    let cx = [m.core.c()[0][0], m.core.c()[1][0], m.core.c()[2][0]];
     let var_x = |p: &[[f64; N]; N]| (0..3).map(|i| (0..3).map(|j| cx[i] * p[VE + i][VE + j] * cx[j]).sum::<f64>()).sum::<f64>();
-    assert!((var_x(&m.cov) - var_x(&fwd0) - 148.0).abs() < 1e-9, "forward speed variance {} -> {}", var_x(&fwd0), var_x(&m.cov));
+    assert!(
+        (var_x(m.core.cov()) - var_x(&fwd0) - 148.0).abs() < 1e-9,
+        "forward speed variance {} -> {}",
+        var_x(&fwd0),
+        var_x(m.core.cov())
+    );
     assert!(m.heading.is_open() && m.lever_pending);
 
     let mut h = filter();
     h.vehicle = false;
-    let th0 = h.cov[TH + 1][TH + 1];
+    let th0 = h.core.cov()[TH + 1][TH + 1];
     h.resync(4.0);
-    let opened = (h.cov[TH + 1][TH + 1] - th0).sqrt();
+    let opened = (h.core.cov()[TH + 1][TH + 1] - th0).sqrt();
     assert!((opened - 90.0 * D2R).abs() < 1e-12, "hand-held tilt opened by {} deg", opened / D2R);
     assert!(!h.heading.is_open());
 }
@@ -209,14 +213,14 @@ fn turning_the_heading_turns_the_state_and_its_covariance_together() {
     let rows = |m: &Mekf| {
         [1, 2].map(|axis| {
             let (val, h) = m.body_velocity_row(axis, &omega);
-            let s: f64 = (0..N).map(|i| (0..N).map(|j| h[i] * m.cov[i][j] * h[j]).sum::<f64>()).sum();
+            let s: f64 = (0..N).map(|i| (0..N).map(|j| h[i] * m.core.cov()[i][j] * h[j]).sum::<f64>()).sum();
             (val, s)
         })
     };
-    let (vb0, r0, yaw0, b0) = (rotate_t(&m.c, &m.v), rows(&m), m.euler()[2], m.bias);
+    let (vb0, r0, yaw0, b0) = (rotate_t(m.core.c(), m.core.v()), rows(&m), m.euler()[2], *m.core.bias());
     let psi = 0.7;
     m.turn_heading(psi);
-    let vb1 = rotate_t(&m.c, &m.v);
+    let vb1 = rotate_t(m.core.c(), m.core.v());
     for i in 0..3 {
         assert!((vb1[i] - vb0[i]).abs() < 1e-12, "body velocity {vb0:?} -> {vb1:?}");
     }
@@ -225,10 +229,10 @@ fn turning_the_heading_turns_the_state_and_its_covariance_together() {
     }
     let turned = wrap_pi(m.euler()[2] - yaw0);
     assert!((turned - psi).abs() < 1e-9, "heading turned by {turned}");
-    assert_eq!(m.bias, b0);
+    assert_eq!(*m.core.bias(), b0);
     for i in 0..N {
         for j in 0..N {
-            assert!((m.cov[i][j] - m.cov[j][i]).abs() < 1e-12, "symmetric");
+            assert!((m.core.cov()[i][j] - m.core.cov()[j][i]).abs() < 1e-12, "symmetric");
         }
     }
 }
@@ -245,24 +249,23 @@ fn a_vertical_speed_beyond_any_road_is_held_to_the_bound() {
         let mut m = filter();
         m.vehicle = true;
         m.p.max_vertical_speed = bound;
-        m.q = quat::from_euler(0.0, -(vd / 16.0).asin(), 0.5);
-        m.c = quat::to_matrix(&m.q);
-        m.v = rotate(&m.c, &[16.0, 0.0, 0.0]);
-        m.dx = [0.0; N];
+        m.core.set_attitude(quat::from_euler(0.0, -(vd / 16.0).asin(), 0.5));
+        m.core.set_velocity(rotate(m.core.c(), &[16.0, 0.0, 0.0]));
+        m.core.clear_dx();
         m.velocity_updates(&omega, true, m.p.gate);
         m.inject();
         m
     };
     for vd in [6.0, -6.0] {
         let (off, on) = (run(vd, 0.0), run(vd, 2.0));
-        assert!((off.v[2] - vd).abs() < 1e-6, "without the bound the constraint is met: {}", off.v[2]);
-        assert!(on.v[2].abs() < vd.abs() - 1.0, "held: {} against {vd} without the bound", on.v[2]);
-        assert!(on.v[2].abs() > 2.0 - 3.0 * VERTICAL_BOUND_SIGMA, "not past the bound: {}", on.v[2]);
+        assert!((off.core.v()[2] - vd).abs() < 1e-6, "without the bound the constraint is met: {}", off.core.v()[2]);
+        assert!(on.core.v()[2].abs() < vd.abs() - 1.0, "held: {} against {vd} without the bound", on.core.v()[2]);
+        assert!(on.core.v()[2].abs() > 2.0 - 3.0 * VERTICAL_BOUND_SIGMA, "not past the bound: {}", on.core.v()[2]);
         // the pitch moved towards level with it
         assert!(on.euler()[1].abs() < off.euler()[1].abs() - 0.01, "pitch {} vs {}", on.euler()[1], off.euler()[1]);
     }
     let (a, b) = (run(1.5, 0.0), run(1.5, 2.0));
-    assert_eq!((a.v, a.q), (b.v, b.q), "within the bound nothing changes");
+    assert_eq!((a.core.v(), a.core.q()), (b.core.v(), b.core.q()), "within the bound nothing changes");
 }
 
 /// The covariance a 1 % gyro scale error adds over a tick: a quarter turn
@@ -275,12 +278,12 @@ fn a_scale_error_turns_the_heading_only_by_the_turn_about_the_vertical() {
     let (q, s) = (m.p.q_gyro, (m.p.gyro_scale * FRAC_PI_2).powi(2));
     assert!(s > 100.0 * q, "the scale term is the one tested: {s} against {q}");
     for (turned_z, heading) in [(0.0, q), (FRAC_PI_2, q + s)] {
-        m.cov = [[0.0; N]; N];
+        m.core.set_cov([[0.0; N]; N]);
         m.propagate(&Accum { t: 1.0, n: 1, turned: FRAC_PI_2, turned_z, ..Accum::default() });
         for i in 0..2 {
-            assert!((m.cov[TH + i][TH + i] - (q + s)).abs() < 1e-15, "tilt {i}: {}", m.cov[TH + i][TH + i]);
+            assert!((m.core.cov()[TH + i][TH + i] - (q + s)).abs() < 1e-15, "tilt {i}: {}", m.core.cov()[TH + i][TH + i]);
         }
-        assert!((m.cov[TH + 2][TH + 2] - heading).abs() < 1e-15, "heading {} against {heading}", m.cov[TH + 2][TH + 2]);
+        assert!((m.core.cov()[TH + 2][TH + 2] - heading).abs() < 1e-15, "heading {} against {heading}", m.core.cov()[TH + 2][TH + 2]);
     }
 }
 
@@ -350,10 +353,10 @@ fn a_free_unit_lying_still_is_standing_whatever_velocity_it_believes() {
         m.step(&still(k));
         k += 1;
     }
-    m.v = [3.0, 0.0, 0.0];
-    m.decorrelate(&[VE, VE + 1, VE + 2]);
+    m.core.set_velocity([3.0, 0.0, 0.0]);
+    m.core.decorrelate(&[VE, VE + 1, VE + 2]);
     for i in 0..3 {
-        m.cov[VE + i][VE + i] = 0.01;
+        m.core.set_var(VE + i, 0.01);
     }
     let mut standing = 0.0;
     for _ in 0..800 {
@@ -363,7 +366,7 @@ fn a_free_unit_lying_still_is_standing_whatever_velocity_it_believes() {
             standing += 0.005;
         }
     }
-    let speed = norm(&m.v);
+    let speed = norm(m.core.v());
     println!("standstill {standing:.2} s of the last 4 s, speed believed {speed:.3} m/s");
     assert!(standing > 3.0, "standstill only {standing} s of 4");
     assert!(speed < 0.05, "the drifted velocity was kept: {speed} m/s");
@@ -381,16 +384,16 @@ fn a_speed_hypothesis_lies_along_the_cars_axes_when_they_are_turned() {
         m.set_speed_hypothesis(12.0, 0.5);
         assert!((m.forward_speed() - 12.0).abs() < 1e-9, "turned {yaw_deg}: forward speed {}", m.forward_speed());
         // the velocity in the car's axes: along x only
-        let vb = rotate_t(&m.c, &m.v);
+        let vb = rotate_t(m.core.c(), m.core.v());
         let rows = m.axes.rows;
         let lateral: f64 = (0..3).map(|i| rows[1][i] * vb[i]).sum();
         let vertical: f64 = (0..3).map(|i| rows[2][i] * vb[i]).sum();
         assert!(lateral.abs() < 1e-9 && vertical.abs() < 1e-9, "turned {yaw_deg}: {lateral} {vertical}");
         // the covariance seen along the car's axes
-        let axis = |k: usize| rotate(&m.c, &rows[k]);
+        let axis = |k: usize| rotate(m.core.c(), &rows[k]);
         let var = |k: usize| {
             let e = axis(k);
-            (0..3).map(|i| (0..3).map(|j| e[i] * m.cov[VE + i][VE + j] * e[j]).sum::<f64>()).sum::<f64>()
+            (0..3).map(|i| (0..3).map(|j| e[i] * m.core.cov()[VE + i][VE + j] * e[j]).sum::<f64>()).sum::<f64>()
         };
         let s2 = m.p.init_speed_sigma * m.p.init_speed_sigma;
         assert!((var(0) - 0.25).abs() < 1e-9, "turned {yaw_deg}: forward variance {}", var(0));

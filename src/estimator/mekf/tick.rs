@@ -36,7 +36,7 @@ impl Mekf {
         let n = a.n as f64;
         let mut fl = 0u16;
         let mut o = Outcome::default();
-        self.dx = [0.0; N];
+        self.core.clear_dx();
         self.aid = AidReport::all(if a.suspect { Why::Suspect } else { Why::NotStarted });
         let omega = [a.omega[0] / n, a.omega[1] / n, a.omega[2] / n];
         let sit = self.situation(&a, &omega);
@@ -163,7 +163,7 @@ impl Mekf {
                 self.heading.forget();
             }
             if self.learns_in_motion() {
-                self.shrink(&[BI, BI + 1, BI + 2], PROVISIONAL_BIAS_SIGMA);
+                self.core.shrink(&[BI, BI + 1, BI + 2], PROVISIONAL_BIAS_SIGMA);
             }
         }
     }
@@ -186,18 +186,18 @@ impl Mekf {
             self.refused_still = 0.0;
         }
         // Re-levelled onto only where the filter's own tilt may be the
-        // wrong one: no standstill has read the bias yet (powered on
-        // moving, a turn-on bias of several deg/s), a counter gap hid
-        // what the unit did, or a free unit (a hand's rests are rests).
-        // A car whose bias a standstill has read has had its tilt held
-        // by the gyro since: a quiet period whose specific force that
-        // tilt refuses is a smooth acceleration taken for a stop (a
-        // crawl easing off, a gentle pull-away), and forced in, it put
-        // that acceleration into the tilt and the bias (`crawl` worst
-        // 2.30 / 3.22 deg, `smooth --hard` pitch 3.52; held, 1.16 / 1.83
-        // and 1.85, every other family the same).
-        let tilt_in_doubt = !self.bias_known || !self.vehicle || self.after_gap;
-        if at_rest && tilt_in_doubt && self.refused_still >= self.p.relevel_s && self.on(Rule::Relevel) {
+        // wrong one (`tilt_held`): no standstill has confirmed it yet
+        // (powered on moving, a turn-on bias of several deg/s; started
+        // from a saved state), a counter gap hid what the unit did, or a
+        // free unit (a hand's rests are rests). A car whose tilt a
+        // standstill has confirmed has had it held by the gyro since: a
+        // quiet period whose specific force that tilt refuses is a smooth
+        // acceleration taken for a stop (a crawl easing off, a gentle
+        // pull-away), and forced in, it put that acceleration into the
+        // tilt and the bias (`crawl` worst 2.30 / 3.22 deg, `smooth
+        // --hard` pitch 3.52; held, 1.16 / 1.83 and 1.85, every other
+        // family the same).
+        if at_rest && !self.tilt_held() && self.refused_still >= self.p.relevel_s && self.on(Rule::Relevel) {
             self.inject();
             self.relevel();
             self.counters.rules.note(Rule::Relevel);
@@ -339,6 +339,14 @@ impl Mekf {
     /// specific force is gravity. Noise from the rest detector. Returns
     /// true for a quiet tick that turned out to accelerate: the tick is
     /// then a moving one.
+    /// A car whose tilt a standstill has confirmed (gravity fused with the
+    /// bias read) since it was last in doubt (start, restart, counter gap),
+    /// and no counter gap since: its tilt is held by the gyro. Otherwise
+    /// the tilt is in doubt, and a refused standstill may re-level it.
+    fn tilt_held(&self) -> bool {
+        self.vehicle && self.tilt_anchored && !self.after_gap
+    }
+
     fn still_updates(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome) -> bool {
         let moving_only = [
             Aid::VehicleConstraint,
@@ -367,7 +375,7 @@ impl Mekf {
         // (`accelerating`). Until then (powered on, restarted, after a
         // counter gap) the tilt is in doubt, and a standstill corrects or
         // re-levels it.
-        let test_first = self.vehicle && self.tilt_anchored && !self.after_gap && self.on(Rule::Accelerating);
+        let test_first = self.tilt_held() && self.on(Rule::Accelerating);
         if test_first {
             let g = self.fuse_still_gravity(a, gate);
             if g.refused() {
@@ -386,6 +394,19 @@ impl Mekf {
         let (u, read) = self.fuse_zero_rate(a, gate);
         o.bias_read = read;
         note(u, o);
+        if !at_rest {
+            // A cruise is a car moving: its speed stays within a car's
+            // bounds, as in any moving tick. A quiet car whose tilt one bad
+            // sample set at power-on integrates that tilt into a speed the
+            // cruise then holds (a knock reading 30 deg, then a car standing
+            // level: -61 m/s believed after 3 min, the pitch 3.2 deg off);
+            // held to the bound, the speed's error turns back into the tilt.
+            let n = a.n as f64;
+            let omega = [a.omega[0] / n, a.omega[1] / n, a.omega[2] / n];
+            let gain = Gain { tilt: true, heading: true, bias: false, scored: false };
+            self.fuse_vertical_speed(gain);
+            self.fuse_forward_speed(&omega, gain);
+        }
         if !test_first {
             let g = self.fuse_still_gravity(a, gate);
             note(g, o);

@@ -15,7 +15,7 @@ impl Mekf {
     /// its motion: 100 m/s, the heading thrown 180 deg): it is the free
     /// velocity again.
     pub(in crate::estimator::mekf) fn fuse_free_velocity(&mut self, omega: &[f64; 3], gain: Gain, gate: f64) -> Rows {
-        let open = self.cov[TH + 2][TH + 2] > FREE_HEADING_SIGMA * FREE_HEADING_SIGMA;
+        let open = self.core.cov()[TH + 2][TH + 2] > FREE_HEADING_SIGMA * FREE_HEADING_SIGMA;
         let vgain = Gain { heading: gain.heading && !open, scored: true, ..gain };
         let mut s = Rows::default();
         for i in 0..3 {
@@ -31,11 +31,11 @@ impl Mekf {
 
     /// A free unit's velocity: zero, `free_velocity_sigma`, uncorrelated.
     pub(in crate::estimator::mekf) fn free_velocity(&mut self) {
-        self.decorrelate(&[VE, VE + 1, VE + 2]);
-        self.v = [0.0; 3];
+        self.core.decorrelate(&[VE, VE + 1, VE + 2]);
+        self.core.set_velocity([0.0; 3]);
+        self.core.drop_dx(&[VE, VE + 1, VE + 2]);
         for i in 0..3 {
-            self.dx[VE + i] = 0.0;
-            self.cov[VE + i][VE + i] = self.p.free_var;
+            self.core.set_var(VE + i, self.p.free_var);
         }
     }
 }

@@ -59,7 +59,7 @@ impl Mekf {
             // the tick's corrections so far are in the frame a turn would leave
             self.inject();
         }
-        let mn = rotate(&self.c, m);
+        let mn = rotate(self.core.c(), m);
         let nrm = norm(&mn);
         let h2 = mn[0] * mn[0] + mn[1] * mn[1];
         if nrm < 1e-6 || h2 < 1e-12 {
@@ -90,7 +90,7 @@ impl Mekf {
         if u.is_refused() {
             self.heading.refused_s += self.p.tick_s;
             if self.heading.refused_s >= HEADING_REACQUIRE_S && self.on(Rule::HeadingReacquire) {
-                self.cov[TH + 2][TH + 2] = self.cov[TH + 2][TH + 2].max(nu * nu);
+                self.core.floor_var(TH + 2, nu * nu);
                 self.heading.refused_s = 0.0;
                 self.counters.reacquired += 1;
                 self.counters.rules.note(Rule::HeadingReacquire);

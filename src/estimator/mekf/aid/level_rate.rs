@@ -45,7 +45,7 @@ impl Mekf {
         } else {
             self.aid.set(Aid::LevelRoll, AidStatus::NotApplicable(Why::HeadingReference));
         }
-        let b = self.bias;
+        let b = self.core.bias();
         // the mean navigation-frame rate, bias-corrected
         let r: [f64; 3] = std::array::from_fn(|k| (g[k] - (0..3).map(|j| c[k][j] * b[j]).sum::<f64>()) / w);
         if r[2].abs() > LEVEL_TURN_MAX {

@@ -32,8 +32,8 @@ impl Mekf {
     /// The car's roll (its axes in use) and its row of H; None on its side.
     pub(in crate::estimator::mekf) fn car_roll_row(&self) -> Option<(f64, [f64; N])> {
         // gravity's direction in the car's y and z axes
-        let wy = rotate(&self.c, &self.axes.rows[1]);
-        let wz = rotate(&self.c, &self.axes.rows[2]);
+        let wy = rotate(self.core.c(), &self.axes.rows[1]);
+        let wz = rotate(self.core.c(), &self.axes.rows[2]);
         let (gy, gz) = (wy[2], wz[2]);
         let n2 = gy * gy + gz * gz;
         if n2 < 0.25 {

@@ -39,7 +39,7 @@ impl Mekf {
             self.aid.set(Aid::StillGravity, s.status);
             return s;
         }
-        let u = rotate(&self.c, &[f[0] / fnm, f[1] / fnm, f[2] / fnm]);
+        let u = rotate(self.core.c(), &[f[0] / fnm, f[1] / fnm, f[2] / fnm]);
         let avar = self.last_rest.map_or(1e-4, |r| r.accel_var / 3.0);
         let r_tilt = (avar / n).max(self.p.tilt_floor);
         let nu = tilt_innovation(&u);

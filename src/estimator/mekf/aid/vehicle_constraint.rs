@@ -50,12 +50,12 @@ impl Mekf {
             e[i] = 1.0;
             (e, self.p.lever)
         };
-        let vb = rotate_t(&self.c, &self.v);
+        let vb = rotate_t(self.core.c(), self.core.v());
         let wl = cross(omega, &l);
         let val = (0..3).map(|k| ax[k] * (vb[k] - wl[k])).sum::<f64>();
         // the axis in NED
-        let ci = rotate(&self.c, &ax);
-        let hth = cross(&ci, &self.v);
+        let ci = rotate(self.core.c(), &ax);
+        let hth = cross(&ci, self.core.v());
         // -a^T [l×]
         let lx = [[0.0, -l[2], l[1]], [l[2], 0.0, -l[0]], [-l[1], l[0], 0.0]];
         let mut h = [0.0; N];

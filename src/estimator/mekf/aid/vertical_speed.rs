@@ -16,13 +16,13 @@ impl Mekf {
             AidStatus::NotApplicable(Why::NotVehicle)
         } else if !self.on(Rule::VerticalSpeedBound) || vmax <= 0.0 {
             AidStatus::NotApplicable(Why::RuleOff)
-        } else if self.v[2].abs() <= vmax {
+        } else if self.core.v()[2].abs() <= vmax {
             AidStatus::NotApplicable(Why::WithinBound)
         } else {
             let mut h = [0.0; N];
             h[VE + 2] = 1.0;
             let var = VERTICAL_BOUND_SIGMA * VERTICAL_BOUND_SIGMA;
-            let s = self.update(&h, vmax.copysign(self.v[2]) - self.v[2], var, gain, f64::INFINITY);
+            let s = self.update(&h, vmax.copysign(self.core.v()[2]) - self.core.v()[2], var, gain, f64::INFINITY);
             self.counters.rules.note(Rule::VerticalSpeedBound);
             s
         };

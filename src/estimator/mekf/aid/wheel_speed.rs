@@ -53,7 +53,7 @@ impl Mekf {
             Some(vw) => {
                 let (val, mut h) = self.body_velocity_row(0, omega);
                 h[SC] = -vw;
-                let nu = vw * (1.0 + self.scale) - val;
+                let nu = vw * (1.0 + self.core.scale()) - val;
                 let gain = Gain { tilt: true, heading: true, bias: learn, scored: true };
                 self.update(&h, nu, self.p.speed_var, gain, self.p.gate)
             }

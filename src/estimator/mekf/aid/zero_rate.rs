@@ -18,7 +18,7 @@ impl Mekf {
         for i in 0..3 {
             let mut h = [0.0; N];
             h[BI + i] = 1.0;
-            let u = self.update(&h, a.gyro[i] / n - self.bias[i], r_zru, all, gate);
+            let u = self.update(&h, a.gyro[i] / n - self.core.bias()[i], r_zru, all, gate);
             read += u.is_fused() as u32;
             s.push(u);
         }

@@ -14,7 +14,7 @@ impl Mekf {
         for i in 0..3 {
             let mut h = [0.0; N];
             h[VE + i] = 1.0;
-            s.push(self.update(&h, -self.v[i], self.p.zupt_var, all, gate));
+            s.push(self.update(&h, -self.core.v()[i], self.p.zupt_var, all, gate));
         }
         self.aid.set(Aid::ZeroVelocity, s.status);
         s

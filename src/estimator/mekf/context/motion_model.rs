@@ -48,9 +48,9 @@ impl Mekf {
         self.counters.rules.note(Rule::LeaveVehicleModel);
         if !self.bias_known {
             let a = self.p.init_angle_sigma * self.p.init_angle_sigma;
-            self.decorrelate(&[TH, TH + 1]);
+            self.core.decorrelate(&[TH, TH + 1]);
             for i in 0..2 {
-                self.cov[TH + i][TH + i] = self.cov[TH + i][TH + i].max(a);
+                self.core.floor_var(TH + i, a);
             }
         }
         self.free_velocity_and_unread_bias();
@@ -63,11 +63,11 @@ impl Mekf {
     pub(in crate::estimator::mekf) fn free_velocity_and_unread_bias(&mut self) {
         self.free_velocity();
         if !self.bias_known {
-            self.decorrelate(&[BI, BI + 1, BI + 2]);
+            self.core.decorrelate(&[BI, BI + 1, BI + 2]);
             let (pb, ps) = self.prior;
-            self.bias = pb;
+            self.core.set_bias(pb);
             for i in 0..3 {
-                self.cov[BI + i][BI + i] = ps[i] * ps[i];
+                self.core.set_var(BI + i, ps[i] * ps[i]);
             }
         }
     }

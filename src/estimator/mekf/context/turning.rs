@@ -24,7 +24,7 @@ impl Mekf {
     /// detector while the power-on bank scores its copies (they must make
     /// the same decisions).
     pub(in crate::estimator::mekf) fn turning_at_speed(&self, omega: &[f64; 3], f: &[f64; 3]) -> bool {
-        self.vehicle && !self.scoring && self.on(Rule::TurningAtSpeed) && along_centripetal(&self.c, &self.v, omega, f)
+        self.vehicle && !self.core.scoring() && self.on(Rule::TurningAtSpeed) && along_centripetal(self.core.c(), self.core.v(), omega, f)
     }
 
     /// A car standing still keeps its magnetic field where it is in its own

@@ -12,8 +12,8 @@ impl Mekf {
     /// covariance that is not positive definite says the velocity is not
     /// known: 0 (nothing refuses the stop).
     pub(in crate::estimator::mekf) fn zero_velocity_nis(&self) -> f64 {
-        let p_vv: Mat3 = std::array::from_fn(|i| std::array::from_fn(|j| self.cov[VE + i][VE + j]));
-        nis_against_zero(&p_vv, &self.v, self.p.zupt_var + self.velocity_age_var())
+        let p_vv: Mat3 = std::array::from_fn(|i| std::array::from_fn(|j| self.core.cov()[VE + i][VE + j]));
+        nis_against_zero(&p_vv, self.core.v(), self.p.zupt_var + self.velocity_age_var())
     }
 
     /// The variance, (m/s)^2, an accelerometer bias of `accel_bias_g` has
@@ -32,7 +32,7 @@ impl Mekf {
     /// Per tick: the heading turned since the last standstill, integrated
     /// (`velocity_age_var`); a standstill starts it again.
     pub(in crate::estimator::mekf) fn age_velocity(&mut self, t: f64, at_rest: bool) {
-        let yaw = quat::euler(&self.c)[2];
+        let yaw = quat::euler(self.core.c())[2];
         if at_rest {
             self.turn_exposure = 0.0;
             self.yaw_at_stop = Some(yaw);
@@ -133,8 +133,7 @@ mod tests {
         m.age_velocity(300.0, false);
         assert_eq!(m.velocity_age_var(), 0.0);
         // then a half turn held for 60 s: 0.01 g x 2 x 60 s = 11.8 m/s
-        m.q = quat::from_euler(0.0, 0.0, std::f64::consts::PI);
-        m.c = quat::to_matrix(&m.q);
+        m.core.set_attitude(quat::from_euler(0.0, 0.0, std::f64::consts::PI));
         m.age_velocity(60.0, false);
         let s = m.velocity_age_var().sqrt();
         assert!((s - m.p.accel_bias_g * G * 120.0).abs() < 1e-6, "{s}");
@@ -151,7 +150,7 @@ mod tests {
         let run = |u: f64, fwd: f64| {
             let mut m = car(u, 5.0);
             m.p.max_forward_speed = fwd;
-            m.dx = [0.0; N];
+            m.core.clear_dx();
             m.fuse_forward_speed(&omega, Gain { tilt: true, heading: true, bias: false, scored: true });
             // the source says what it did: held beyond the band, nothing inside it
             let s = m.aid.get(Aid::ForwardSpeed);

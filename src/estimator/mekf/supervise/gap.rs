@@ -30,27 +30,27 @@ impl Mekf {
         if self.vehicle {
             let a2 = att.min(GAP_VEHICLE_TILT).powi(2);
             // V = -[v×]: the velocity's error for an attitude error
-            let v = self.v;
+            let v = self.core.v();
             let vx = [[0.0, v[2], -v[1]], [-v[2], 0.0, v[0]], [v[1], -v[0], 0.0]];
-            let cx = rotate(&self.c, &self.axes.rows[0]);
+            let cx = rotate(self.core.c(), &self.axes.rows[0]);
             for i in 0..3 {
                 for j in 0..3 {
                     // ΔP_vθ = V ΔP_θθ, ΔP_vv = V ΔP_θθ V^T + the speed along body x
                     let pvt = vx[i][j] * a2;
-                    self.cov[VE + i][TH + j] += pvt;
-                    self.cov[TH + j][VE + i] += pvt;
+                    self.core.add_cov(VE + i, TH + j, pvt);
+                    self.core.add_cov(TH + j, VE + i, pvt);
                     let pvv = (0..3).map(|k| vx[i][k] * vx[j][k]).sum::<f64>() * a2;
-                    self.cov[VE + i][VE + j] += pvv + speed_var * cx[i] * cx[j];
+                    self.core.add_cov(VE + i, VE + j, pvv + speed_var * cx[i] * cx[j]);
                 }
-                self.cov[TH + i][TH + i] += a2;
+                self.core.add_cov(TH + i, TH + i, a2);
             }
             self.heading.set_open(self.on(Rule::GapHeadingOpen));
             self.tilt_anchored = false;
             self.lever_pending = true;
         } else {
             for i in 0..3 {
-                self.cov[TH + i][TH + i] += att * att;
-                self.cov[VE + i][VE + i] += speed_var;
+                self.core.add_cov(TH + i, TH + i, att * att);
+                self.core.add_cov(VE + i, VE + i, speed_var);
             }
         }
         // the tick's means of the measurements are of after the gap only
@@ -75,37 +75,9 @@ impl Mekf {
     /// (rad): attitude, velocity, the low-passed force, and the covariance of
     /// the navigation-frame errors. Nothing in the body frame changes.
     pub(in crate::estimator::mekf) fn turn_heading(&mut self, psi: f64) {
-        let dq = quat::from_rotvec(&[0.0, 0.0, psi]);
-        let r = quat::to_matrix(&dq);
-        self.q = quat::mul(&dq, &self.q);
-        quat::normalise(&mut self.q);
-        self.c = quat::to_matrix(&self.q);
-        self.v = rotate(&r, &self.v);
+        let r = self.core.turn_heading(psi);
         if let Some(lp) = self.f_lp.as_mut() {
             lp.rotate(&r);
         }
-        // T = blockdiag(R, I, R, 1): P' = T P T^T
-        let nav = |k: usize| k < 3 || (VE..VE + 3).contains(&k);
-        let mut m = self.cov;
-        for i in 0..N {
-            if !nav(i) {
-                continue;
-            }
-            let b = i - i % 3;
-            for j in 0..N {
-                m[i][j] = (0..3).map(|k| r[i - b][k] * self.cov[b + k][j]).sum();
-            }
-        }
-        let mut out = m;
-        for j in 0..N {
-            if !nav(j) {
-                continue;
-            }
-            let b = j - j % 3;
-            for i in 0..N {
-                out[i][j] = (0..3).map(|k| m[i][b + k] * r[j - b][k]).sum();
-            }
-        }
-        self.cov = out;
     }
 }

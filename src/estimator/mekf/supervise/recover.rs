@@ -14,7 +14,7 @@ impl Mekf {
             // velocity, not the vehicle, is wrong. Widen it so they take hold
             // again (the attitude is left alone: it is what they correct).
             for i in 0..3 {
-                self.cov[VE + i][VE + i] += 1.0;
+                self.core.add_cov(VE + i, VE + i, 1.0);
             }
             self.refusals.refused_s = 0.0;
             self.counters.reacquired += 1;
@@ -33,7 +33,7 @@ impl Mekf {
         let unbelievable = self.on(Rule::RestartBiasRange)
             && !self.bias_known
             && !at_rest
-            && (0..3).any(|i| (self.bias[i] - pb[i]).abs() > BIAS_LIMIT_SIGMAS * ps[i].max(self.p.init_bias_sigma));
+            && (0..3).any(|i| (self.core.bias()[i] - pb[i]).abs() > BIAS_LIMIT_SIGMAS * ps[i].max(self.p.init_bias_sigma));
         if lost || unbelievable {
             self.counters.rules.note(if lost { Rule::RestartLost } else { Rule::RestartBiasRange });
             self.restart_from_prior();
@@ -48,7 +48,7 @@ impl Mekf {
     pub(in crate::estimator::mekf) fn restart_from_prior(&mut self) {
         let (pb, ps) = self.prior;
         let f = self.body_f_lp;
-        let yaw = quat::euler(&self.c)[2];
+        let yaw = quat::euler(self.core.c())[2];
         let (roll, pitch) = crate::estimator::ekf::tilt_from_accel(&f);
         self.initialise([roll, pitch, yaw], pb, ps);
         self.bias_known = false;

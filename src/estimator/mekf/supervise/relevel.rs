@@ -12,25 +12,24 @@ impl Mekf {
     /// updates converge them again.
     pub(in crate::estimator::mekf) fn relevel(&mut self) {
         let Some(r) = self.last_rest else { return };
-        let e = quat::euler(&self.c);
+        let e = quat::euler(self.core.c());
         let (roll, pitch) = crate::estimator::ekf::tilt_from_accel(&r.accel_lp);
         let dt = ((roll - e[0]).powi(2) + (pitch - e[1]).powi(2)).max((1.0 * D2R).powi(2));
-        self.q = quat::from_euler(roll, pitch, e[2]);
-        self.c = quat::to_matrix(&self.q);
-        self.v = [0.0; 3];
+        self.core.set_attitude(quat::from_euler(roll, pitch, e[2]));
+        self.core.set_velocity([0.0; 3]);
         let mut db = 0.0f64;
         for i in 0..3 {
-            db = db.max((r.gyro_lp[i] - self.bias[i]).abs());
-            self.bias[i] = r.gyro_lp[i];
+            db = db.max((r.gyro_lp[i] - self.core.bias()[i]).abs());
         }
+        self.core.set_bias(r.gyro_lp);
         // decorrelate and widen tilt, bias and velocity (heading and scale keep theirs)
-        self.decorrelate(&[TH, TH + 1, BI, BI + 1, BI + 2, VE, VE + 1, VE + 2]);
+        self.core.decorrelate(&[TH, TH + 1, BI, BI + 1, BI + 2, VE, VE + 1, VE + 2]);
         for i in 0..2 {
-            self.cov[TH + i][TH + i] = dt;
+            self.core.set_var(TH + i, dt);
         }
         for i in 0..3 {
-            self.cov[BI + i][BI + i] = (db * db).max((0.1 * D2R).powi(2));
-            self.cov[VE + i][VE + i] = 0.01;
+            self.core.set_var(BI + i, (db * db).max((0.1 * D2R).powi(2)));
+            self.core.set_var(VE + i, 0.01);
         }
         self.refused_still = 0.0;
         self.counters.relevels += 1;
@@ -59,9 +58,7 @@ impl Mekf {
         // the whole turn, as an error state: (dθ_x, dθ_y) from the
         // innovations (dθ_y, -dθ_x); `inject` turns the attitude and the
         // low-passed force with it
-        self.dx = [0.0; N];
-        self.dx[TH] = -nu[1];
-        self.dx[TH + 1] = nu[0];
+        self.core.set_tilt_error(-nu[1], nu[0]);
         self.inject();
         let angle2 = self.p.init_angle_sigma * self.p.init_angle_sigma;
         // The heading was measured from the field with the wrong tilt: a
@@ -70,13 +67,13 @@ impl Mekf {
         // power-on (a quarter turn), so the next undisturbed field sets it.
         let turned = (nu[0] * nu[0] + nu[1] * nu[1]).sqrt();
         let heading2 = (3.0 * turned).min(std::f64::consts::FRAC_PI_2).powi(2);
-        let open_heading = heading2 > self.cov[TH + 2][TH + 2];
+        let open_heading = heading2 > self.core.cov()[TH + 2][TH + 2];
         let tilt_rows = [TH, TH + 1, TH + 2];
-        self.decorrelate(&tilt_rows[..if open_heading { 3 } else { 2 }]);
-        self.cov[TH][TH] = angle2;
-        self.cov[TH + 1][TH + 1] = angle2;
+        self.core.decorrelate(&tilt_rows[..if open_heading { 3 } else { 2 }]);
+        self.core.set_var(TH, angle2);
+        self.core.set_var(TH + 1, angle2);
         if open_heading {
-            self.cov[TH + 2][TH + 2] = heading2;
+            self.core.set_var(TH + 2, heading2);
         }
         if keep_bias {
             self.free_velocity();

@@ -1,0 +1,29 @@
+"""gyrocomp from Python: the estimator, replay and calibrate of the Rust crate.
+
+Units are the project's CSVs': gyro deg/s, specific force g, magnetic field
+gauss, temperature deg C, time s, angles deg. See docs/python.md.
+"""
+
+from ._gyrocomp import (
+    CSV_COLUMNS,
+    FLAGS,
+    Estimate,
+    Estimator,
+    __version__,
+    calibrate,
+    read_log,
+    replay,
+    replay_chunks,
+)
+
+__all__ = [
+    "CSV_COLUMNS",
+    "FLAGS",
+    "Estimate",
+    "Estimator",
+    "__version__",
+    "calibrate",
+    "read_log",
+    "replay",
+    "replay_chunks",
+]
