@@ -1,8 +1,9 @@
 //! `cargo bench --bench mcap`: `gyrocomp replay` of a simulated 10-minute
-//! drive (smooth, seed 3, adis16448 at 204.8 Hz: 122,881 samples, 491,524
-//! input frames) to `--output` and `--csv`, with and without `--mcap`, the
-//! files written through `replay_files` as the command writes them (temp
-//! file, sync, rename). Issue 40's target: the MCAP adds at most 30 % to the
+//! drive (smooth, seed 3, adis16448 at 204.8 Hz: 122,881 samples, 521,524
+//! input frames: the IMU's four per sample and 30,000 wheel-speed frames)
+//! to `--output` and `--csv`, with and without `--mcap`, the files written
+//! through `replay_files` as the command writes them (temp file, sync,
+//! rename). Issue 40's target: the MCAP adds at most 30 % to the
 //! replay's wall time; docs/mcap.md records what this measured.
 
 use criterion::{criterion_group, criterion_main, Criterion};

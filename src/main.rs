@@ -39,11 +39,12 @@ enum Cmd {
         #[arg(long, value_name = "EST.csv")]
         csv: Option<PathBuf>,
         /// Write an MCAP recording here for Foxglove / PlotJuggler (docs/mcap.md):
-        /// the attitude as foxglove.FrameTransform on /tf (world ENU -> base_link
-        /// FLU), the estimate (rates, bias, temperature, mode, flags) on
-        /// /gyrocomp/estimate, the input frames on /can/rx; JSON messages, log
-        /// times from the frames' own timestamps. At least one of --output, --csv
-        /// and --mcap is required.
+        /// the attitude as tf2_msgs/msg/TFMessage on /tf (world ENU -> base_link
+        /// FLU), the estimate (rates, bias, temperature, mode, flags, aid
+        /// sources) on /gyrocomp/estimate, the input frames on /can/rx; ROS 2
+        /// CDR messages with their message definitions in the file, log times
+        /// from the frames' own timestamps. At least one of --output, --csv and
+        /// --mcap is required.
         #[arg(long, value_name = "OUT.mcap")]
         mcap: Option<PathBuf>,
     },

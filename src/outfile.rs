@@ -27,7 +27,7 @@ use std::fs::{self, File, OpenOptions};
 use std::io::{self, BufWriter, Write};
 use std::os::unix::ffi::{OsStrExt, OsStringExt};
 use std::os::unix::fs::{FileTypeExt, MetadataExt};
-use std::os::unix::io::FromRawFd;
+use std::os::unix::io::{AsRawFd, FromRawFd};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicPtr, AtomicUsize, Ordering};
 
@@ -145,6 +145,19 @@ impl OutFile {
     /// The final path.
     pub fn path(&self) -> &Path {
         &self.dest
+    }
+
+    /// Write out what is buffered and ask the kernel to start writing the
+    /// file to disk without waiting for it (`sync_file_range`), so that
+    /// [`OutFile::commit`]'s sync has less left to wait for; a writer that
+    /// produces a large file calls it now and then. Advisory: a device or
+    /// pipe that cannot do it is left as it is.
+    pub fn start_writeback(&mut self) -> io::Result<()> {
+        let w = self.w.as_mut().expect("OutFile writer present until commit");
+        w.flush()?;
+        // SAFETY: the descriptor is the open file's; the call only schedules writeback.
+        let _ = unsafe { libc::sync_file_range(w.get_ref().as_raw_fd(), 0, 0, libc::SYNC_FILE_RANGE_WRITE) };
+        Ok(())
     }
 
     /// Flush, sync and rename over the destination (a device or descriptor:

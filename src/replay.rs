@@ -212,29 +212,63 @@ fn parse_into<R: Read>(input: R, mut batches: Batches<Item>) -> io::Result<()> {
     Ok(())
 }
 
+/// An input frame as the pipeline stage hands it on: at most 8 payload bytes.
+#[derive(Clone, Copy, Default)]
+struct InFrame {
+    t_us: u64,
+    id: u32,
+    extended: bool,
+    remote: bool,
+    fd: bool,
+    len: u8,
+    data: [u8; 8],
+}
+
+/// Input frames per [`Out::Inputs`]: about what fits in an output's room
+/// (an `Out` is as large as its largest variant, and `replay --mcap` hands
+/// over four or five frames per estimate).
+const INPUTS: usize = 8;
+
 /// What the pipeline stage hands to the sink stage.
 enum Out {
     Output(Estimate, Frames),
     Dropped(u64, crate::adis::Drop),
-    /// An input frame (only when the sink wants them): at most 8 payload bytes.
-    Input {
-        t_us: u64,
-        id: u32,
-        extended: bool,
-        remote: bool,
-        fd: bool,
-        len: u8,
-        data: [u8; 8],
-    },
+    /// The first `n` are consecutive input frames (only when the sink wants them).
+    Inputs(u8, [InFrame; INPUTS]),
 }
 
-/// Collects the pipeline's output into batches for the sink thread.
-impl Sink for Batches<Out> {
+/// Collects the pipeline's output into batches for the sink thread, the
+/// input frames grouped into [`Out::Inputs`] ahead of what follows them.
+struct Stage {
+    out: Batches<Out>,
+    n: u8,
+    inputs: [InFrame; INPUTS],
+}
+
+impl Stage {
+    fn input(&mut self, f: InFrame) {
+        self.inputs[self.n as usize] = f;
+        self.n += 1;
+        if self.n as usize == INPUTS {
+            self.flush_inputs();
+        }
+    }
+    fn flush_inputs(&mut self) {
+        if self.n > 0 {
+            self.out.push(Out::Inputs(self.n, self.inputs));
+            self.n = 0;
+        }
+    }
+}
+
+impl Sink for Stage {
     fn output(&mut self, est: &Estimate, frames: &Frames) {
-        self.push(Out::Output(*est, *frames));
+        self.flush_inputs();
+        self.out.push(Out::Output(*est, *frames));
     }
     fn dropped(&mut self, t_us: u64, cause: crate::adis::Drop) {
-        self.push(Out::Dropped(t_us, cause));
+        self.flush_inputs();
+        self.out.push(Out::Dropped(t_us, cause));
     }
 }
 
@@ -255,8 +289,17 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
                     match o {
                         Out::Output(e, f) => sink.output(&e, &f),
                         Out::Dropped(t, d) => sink.dropped(t, d),
-                        Out::Input { t_us, id, extended, remote, fd, len, data } => {
-                            sink.input(t_us, &RawFrame { id, extended, remote, fd, data: &data[..len as usize] })
+                        Out::Inputs(n, fs) => {
+                            for f in &fs[..n as usize] {
+                                let raw = RawFrame {
+                                    id: f.id,
+                                    extended: f.extended,
+                                    remote: f.remote,
+                                    fd: f.fd,
+                                    data: &f.data[..f.len as usize],
+                                };
+                                sink.input(f.t_us, &raw)
+                            }
                         }
                     }
                 }
@@ -264,7 +307,7 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
             }
         });
         let worker = sc.spawn(move || {
-            let mut out = Batches::new(otx, oback_rx);
+            let mut out = Stage { out: Batches::new(otx, oback_rx), n: 0, inputs: [InFrame::default(); INPUTS] };
             let mut sum = Summary::default();
             for mut batch in rx {
                 for it in batch.drain(..) {
@@ -275,7 +318,7 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
                             // dropped as unknown by the assembler whatever they carry.
                             let n = (len as usize).min(8);
                             if want_input {
-                                out.push(Out::Input { t_us, id, extended, remote, fd, len: n as u8, data });
+                                out.input(InFrame { t_us, id, extended, remote, fd, len: n as u8, data });
                             }
                             pipe.push(t_us, RawFrame { id, extended, remote, fd, data: &data[..n] }, &mut out)
                         }
@@ -285,7 +328,8 @@ pub fn run_threaded<R: Read + Send, S: Sink + Send>(pipe: &mut Pipeline, input: 
                 }
                 let _ = back_tx.try_send(batch);
             }
-            out.flush();
+            out.flush_inputs();
+            out.out.flush();
             sum.finish(pipe);
             sum
         });

@@ -1,5 +1,5 @@
 //! `gyrocomp replay --mcap` as a user runs it on the README's bundled log, the
-//! recording read back by the python `mcap` reader (tests/mcap_check.py):
+//! recording read back by the python `mcap` reader and Foxglove's CDR decoder (tests/mcap_check.py):
 //! channels, schemas, one message per sample (one per input frame on
 //! /can/rx), monotonic times, unit quaternions, the aid sources by name; the
 //! same bytes twice; the other outputs the same bytes with or without it; bad
@@ -28,16 +28,18 @@ fn count(summary: &str, key: &str) -> u64 {
     summary[at + key.len() + 1..].split(|c: char| !c.is_ascii_digit()).next().unwrap().parse().unwrap()
 }
 
-/// Whether python3 with the `mcap` module is here. Absent: fails under CI
+/// Whether python3 with the `mcap` and `mcap_ros2` (Foxglove's CDR decoder) modules is here. Absent: fails under CI
 /// (tests/run-all.sh installs it), says so and skips elsewhere.
 fn python_mcap() -> bool {
-    let ok = Command::new("python3").args(["-c", "import mcap"]).output().map(|o| o.status.success()).unwrap_or(false);
+    let ok = Command::new("python3").args(["-c", "import mcap, mcap_ros2.decoder"]).output().map(|o| o.status.success()).unwrap_or(false);
     if !ok {
         assert!(
             std::env::var_os("CI").is_none(),
-            "python3 with the mcap module is required under CI (tests/run-all.sh installs it: pip install mcap)"
+            "python3 with the mcap and mcap_ros2 modules is required under CI (tests/run-all.sh installs them: pip install mcap mcap-ros2-support)"
         );
-        eprintln!("skipped: python3 or its mcap module not found (pip install mcap, or run tests/run-all.sh)");
+        eprintln!(
+            "skipped: python3 or its mcap / mcap_ros2 modules not found (pip install mcap mcap-ros2-support, or run tests/run-all.sh)"
+        );
     }
     ok
 }
@@ -151,9 +153,9 @@ fn evaluate_mcap_has_the_truth_and_vqf_beside_the_estimate() {
         .arg(samples.to_string())
         .arg(frames.to_string())
         .args([
-            "/truth/tf=foxglove.FrameTransform",
+            "/truth/tf=tf2_msgs/msg/TFMessage",
             "/truth/estimate=gyrocomp.Attitude",
-            "/vqf/tf=foxglove.FrameTransform",
+            "/vqf/tf=tf2_msgs/msg/TFMessage",
             "/vqf/estimate=gyrocomp.Attitude",
         ])
         .output()
