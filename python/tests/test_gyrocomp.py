@@ -332,27 +332,32 @@ def test_config_path_and_text_are_the_same(tmp_path):
 
 def test_long_calls_release_the_gil(samples):
     """Another Python thread runs while update_batch works: with the GIL
-    held it could run only at a switch (every 5 ms) just before or after."""
+    held it could run only at a switch (every 5 ms) just before or after.
+    The batch grows until one call lasts at least 0.2 s, whatever the
+    machine's speed (a fixed batch ran 0.049 s on an idle machine)."""
     import time
-    big = {k: np.concatenate([samples[k]] * 16) for k in ("gyr", "acc", "mag", "temp")}
-    stamps = []
-    done = threading.Event()
+    for reps in (16, 64, 256, 1024):
+        big = {k: np.concatenate([samples[k]] * reps) for k in ("gyr", "acc", "mag", "temp")}
+        stamps = []
+        done = threading.Event()
 
-    def count():
-        while not done.is_set():
-            stamps.append(time.perf_counter())
+        def count():
+            while not done.is_set():
+                stamps.append(time.perf_counter())
 
-    th = threading.Thread(target=count)
-    e = gyrocomp.Estimator(204.8)
-    th.start()
-    try:
-        t0 = time.perf_counter()
-        e.update_batch(**big)
-        t1 = time.perf_counter()
-    finally:
-        done.set()
-        th.join()
-    assert t1 - t0 > 0.05, "the call is too short to tell"
+        th = threading.Thread(target=count)
+        e = gyrocomp.Estimator(204.8)
+        th.start()
+        try:
+            t0 = time.perf_counter()
+            e.update_batch(**big)
+            t1 = time.perf_counter()
+        finally:
+            done.set()
+            th.join()
+        if t1 - t0 >= 0.2:
+            break
+    assert t1 - t0 >= 0.2, f"the call is too short to tell ({t1 - t0:.3f} s for {reps} copies)"
     inside = [s for s in stamps if t0 + 0.015 < s < t1 - 0.015]
     assert len(inside) > 100
 
