@@ -44,7 +44,7 @@ impl Mekf {
         let learns_in_motion = self.learns_in_motion() && (self.bias_known || self.tilt_settled);
         let learn_gravity = (a.quasi || learns_in_motion) && !a.suspect;
         let learn = !a.suspect;
-        let accelerating = sit.still && self.still_tick(&a, sit.at_rest, &mut o, &mut fl);
+        let accelerating = sit.still && self.still_tick(&a, &omega, sit.at_rest, &mut o, &mut fl);
         if !sit.still || accelerating {
             self.refused_still = 0.0;
             self.moving_tick(&a, &omega, learn, learn_gravity, &mut o, &mut fl);
@@ -171,9 +171,9 @@ impl Mekf {
     /// The updates of a still tick (`still_updates`) and the re-level a
     /// standstill's refused evidence may call for. True when the tick
     /// turned out to be a moving one (`accelerating`).
-    fn still_tick(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome, fl: &mut u16) -> bool {
+    fn still_tick(&mut self, a: &Accum, omega: &[f64; 3], at_rest: bool, o: &mut Outcome, fl: &mut u16) -> bool {
         let t = a.t;
-        if self.still_updates(a, at_rest, o) {
+        if self.still_updates(a, omega, at_rest, o) {
             return true;
         }
         if at_rest {
@@ -266,9 +266,15 @@ impl Mekf {
             let g = self.fuse_free_gravity(gain, gate);
             g.and(self.fuse_free_velocity(omega, gain, gate))
         };
+        self.speed_bounds(omega, gain);
+        (s.any_fused, s.refused())
+    }
+
+    /// A car's vertical and forward speed held within their bounds (in a
+    /// moving tick and in a cruise alike).
+    fn speed_bounds(&mut self, omega: &[f64; 3], gain: Gain) {
         self.fuse_vertical_speed(gain);
         self.fuse_forward_speed(omega, gain);
-        (s.any_fused, s.refused())
     }
 
     /// The wheel speed (each frame once) and the magnetic heading.
@@ -347,7 +353,7 @@ impl Mekf {
         self.vehicle && self.tilt_anchored && !self.after_gap
     }
 
-    fn still_updates(&mut self, a: &Accum, at_rest: bool, o: &mut Outcome) -> bool {
+    fn still_updates(&mut self, a: &Accum, omega: &[f64; 3], at_rest: bool, o: &mut Outcome) -> bool {
         let moving_only = [
             Aid::VehicleConstraint,
             Aid::FreeVelocity,
@@ -401,11 +407,7 @@ impl Mekf {
             // cruise then holds (a knock reading 30 deg, then a car standing
             // level: -61 m/s believed after 3 min, the pitch 3.2 deg off);
             // held to the bound, the speed's error turns back into the tilt.
-            let n = a.n as f64;
-            let omega = [a.omega[0] / n, a.omega[1] / n, a.omega[2] / n];
-            let gain = Gain { tilt: true, heading: true, bias: false, scored: false };
-            self.fuse_vertical_speed(gain);
-            self.fuse_forward_speed(&omega, gain);
+            self.speed_bounds(omega, Gain { tilt: true, heading: true, bias: false, scored: false });
         }
         if !test_first {
             let g = self.fuse_still_gravity(a, gate);
