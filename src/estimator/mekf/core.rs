@@ -37,15 +37,13 @@ pub(in crate::estimator::mekf) struct Core {
     log_likelihood: f64,
 }
 
-/// The process noise of one tick, built by the filter from what the tick
-/// saw (`Mekf::propagate`): added to the diagonal of the attitude, bias and
-/// scale rows, and to the velocity's block.
+/// The process noise of one tick (variances over the tick), built by the
+/// filter from what the tick saw (`Mekf::propagate`): added to the diagonal
+/// of the attitude, bias and scale rows, and to the velocity's block.
 pub(in crate::estimator::mekf) struct ProcessNoise {
     pub theta: [f64; 3],
     pub bias: f64,
-    /// Per second, times `t`.
     pub v: Mat3,
-    pub t: f64,
     pub scale: f64,
 }
 
@@ -281,7 +279,7 @@ impl Core {
         }
         for i in 0..3 {
             for j in 0..3 {
-                out[VE + i][VE + j] += q.v[i][j] * q.t;
+                out[VE + i][VE + j] += q.v[i][j];
             }
         }
         if self.with_scale {

@@ -40,7 +40,8 @@ impl Mekf {
             let s = if i == 2 { turned_z } else { turned };
             self.p.q_gyro * t + s * s
         });
-        let noise = ProcessNoise { theta, bias: q_bias * t, v: self.velocity_noise(a), t, scale: self.p.q_scale * t };
+        let v = self.velocity_noise(a).map(|row| row.map(|q| q * t));
+        let noise = ProcessNoise { theta, bias: q_bias * t, v, scale: self.p.q_scale * t };
         self.core.propagate(&a.s_c, &a.dv, &noise);
     }
 
