@@ -243,6 +243,8 @@ fn mekf_a_car_believed_cruising_keeps_a_cars_speed() {
         }
     }
     let p = crate::config::MekfConfig::default();
+    let speed = e.mekf().unwrap().forward_speed();
+    eprintln!("after 180 s: forward speed {speed:.2} m/s, reversing at most {speed_max:.2} m/s from 60 s, roll {:.3} pitch {:.3} deg, standstill {}", est.roll, est.pitch, est.flags & flags::STANDSTILL != 0);
     assert!(speed_max < p.max_reverse_speed + 1.0, "reversing at {speed_max} m/s");
     assert!(est.pitch.abs() < 0.2 && est.roll.abs() < 0.2, "roll {} pitch {}", est.roll, est.pitch);
 }
