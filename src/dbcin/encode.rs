@@ -2,7 +2,7 @@
 //! `gyrocomp simulate --input-dbc` (the simulator's bus in a DBC format)
 //! and for benchmarks. Not on the decoding path; it may allocate.
 
-use super::extract::Extractor;
+use super::extract::{gather, low_bits, Extractor};
 use super::plan::{Assembly, Crc, DbcPlan};
 
 impl Extractor {
@@ -10,15 +10,11 @@ impl Extractor {
     pub fn put(&self, d: &mut [u8], raw: u64) {
         let (first, bytes, shift) = self.window();
         let w = &mut d[first..first + bytes];
-        let mut v: u128 = 0;
-        let order: Vec<usize> = if self.motorola { (0..bytes).collect() } else { (0..bytes).rev().collect() };
-        for &i in &order {
-            v = (v << 8) | u128::from(w[i]);
-        }
-        let mask: u128 = ((1u128 << self.size) - 1) << shift;
-        v = (v & !mask) | ((u128::from(raw) << shift) & mask);
-        for &i in order.iter().rev() {
-            w[i] = v as u8;
+        let mask = u128::from(low_bits(self.size)) << shift;
+        let mut v = (gather::<u128>(w, self.motorola) & !mask) | ((u128::from(raw) << shift) & mask);
+        // back in the order gather read them: the last byte read holds the low bits
+        for i in 0..bytes {
+            w[if self.motorola { bytes - 1 - i } else { i }] = v as u8;
             v >>= 8;
         }
     }
@@ -30,7 +26,7 @@ impl Extractor {
             if self.signed { (-(2f64.powi(n as i32 - 1)), 2f64.powi(n as i32 - 1) - 1.0) } else { (0.0, 2f64.powi(n as i32) - 1.0) };
         let r = if x.is_finite() { x.round().clamp(lo, hi) } else { 0.0 };
         if r < 0.0 {
-            (r as i64) as u64 & if n == 64 { u64::MAX } else { (1u64 << n) - 1 }
+            (r as i64) as u64 & low_bits(self.size)
         } else {
             r as u64
         }
