@@ -21,9 +21,8 @@ impl Extractor {
 
     /// The raw value nearest to `x`, saturated at the signal's range (two's complement bits when signed).
     pub fn quantise(&self, x: f64) -> u64 {
-        let n = u32::from(self.size);
-        let (lo, hi) =
-            if self.signed { (-(2f64.powi(n as i32 - 1)), 2f64.powi(n as i32 - 1) - 1.0) } else { (0.0, 2f64.powi(n as i32) - 1.0) };
+        let (lo, hi) = self.raw_range();
+        let (lo, hi) = (lo as f64, hi as f64);
         let r = if x.is_finite() { x.round().clamp(lo, hi) } else { 0.0 };
         if r < 0.0 {
             (r as i64) as u64 & low_bits(self.size)

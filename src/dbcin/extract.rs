@@ -84,6 +84,16 @@ impl Extractor {
         }
     }
 
+    /// The raw values the signal holds, lowest and highest (two's complement when signed).
+    pub fn raw_range(&self) -> (i128, i128) {
+        let n = self.size;
+        if self.signed {
+            (-(1i128 << (n - 1)), (1i128 << (n - 1)) - 1)
+        } else {
+            (0, (1i128 << n) - 1)
+        }
+    }
+
     /// The byte window: first byte, bytes, shift.
     pub(super) fn window(&self) -> (usize, usize, u32) {
         (self.first as usize, self.bytes as usize, u32::from(self.shift))

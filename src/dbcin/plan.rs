@@ -397,7 +397,7 @@ fn valid(cx: &mut Ctx<'_>, input: &InputConfig, lines: &mut Vec<String>) -> Resu
             return e("input.valid", format!("{r} is in a message no mapped signal is in"));
         }
         let ex = Extractor::of(sig, cx.msgs[mi].len).or_else(|why| e("input.valid", format!("{}: {r}: {why}", cx.path)))?;
-        let (lo, hi) = if ex.signed { (-(1i128 << (ex.size - 1)), (1i128 << (ex.size - 1)) - 1) } else { (0, (1i128 << ex.size) - 1) };
+        let (lo, hi) = ex.raw_range();
         if !(lo..=hi).contains(&i128::from(*want)) {
             return e(
                 "input.valid",
