@@ -3,7 +3,7 @@
 //! and for benchmarks. Not on the decoding path; it may allocate.
 
 use super::extract::{gather, low_bits, Extractor};
-use super::plan::{Assembly, Crc, DbcPlan};
+use super::plan::{j1850, Assembly, Crc, DbcPlan};
 
 impl Extractor {
     /// Write `raw` (its low `size` bits) into the signal's bits of `d`.
@@ -70,29 +70,13 @@ impl DbcPlan {
                     ex.put(&mut d, *want as u64);
                 }
                 if let Some(Crc::J1850 { at }) = m.crc {
-                    d[at as usize] = 0;
-                    d[at as usize] = crc8_j1850(&d, at as usize);
+                    d[at as usize] = j1850(&d, at as usize);
                 }
                 let id = if m.extended && m.mask != 0x1FFF_FFFF { m.id | 3 << 26 } else { m.id };
                 Encoded { id, extended: m.extended, data: d }
             })
             .collect()
     }
-}
-
-/// CRC-8 SAE J1850 of `d` without its byte `skip`.
-fn crc8_j1850(d: &[u8], skip: usize) -> u8 {
-    let mut c: u8 = 0xFF;
-    for (i, b) in d.iter().enumerate() {
-        if i == skip {
-            continue;
-        }
-        c ^= b;
-        for _ in 0..8 {
-            c = if c & 0x80 != 0 { (c << 1) ^ 0x1D } else { c << 1 };
-        }
-    }
-    c ^ 0xFF
 }
 
 #[cfg(test)]

@@ -31,17 +31,21 @@ impl Crc {
     #[inline]
     pub fn ok(&self, d: &[u8]) -> bool {
         match *self {
-            Crc::J1850 { at } => {
-                let mut c: u8 = 0xFF;
-                for (i, b) in d.iter().enumerate() {
-                    if i != at as usize {
-                        c = J1850[(c ^ b) as usize];
-                    }
-                }
-                c ^ 0xFF == d[at as usize]
-            }
+            Crc::J1850 { at } => j1850(d, at as usize) == d[at as usize],
         }
     }
+}
+
+/// CRC-8 SAE J1850 of `d` without its byte `skip`.
+#[inline]
+pub(super) fn j1850(d: &[u8], skip: usize) -> u8 {
+    let mut c: u8 = 0xFF;
+    for (i, b) in d.iter().enumerate() {
+        if i != skip {
+            c = J1850[(c ^ b) as usize];
+        }
+    }
+    c ^ 0xFF
 }
 
 /// CRC-8 SAE J1850 (poly 0x1D) by byte, made at compile time.
