@@ -4,7 +4,8 @@ use super::extract::Extractor;
 use super::{Measured, MOTION};
 use crate::config::dbcin::{split_ref, unit_factor, Kind, SignalRef, CHANNELS};
 use crate::config::InputConfig;
-use can_dbc::{Dbc, Message, MessageId, MultiplexIndicator, Signal};
+use crate::speed::num;
+use can_dbc::{Dbc, Message, MessageId, Signal};
 
 /// Most messages one sample may span.
 pub const MAX_MESSAGES: usize = 16;
@@ -154,16 +155,8 @@ impl<'a> Ctx<'a> {
             let known: Vec<&str> = msg.signals.iter().map(|x| x.name.as_str()).collect();
             return e(key, format!("{}: message {m} has no signal named {s:?} (it has: {})", self.path, known.join(", ")));
         };
-        if !matches!(sig.multiplexer_indicator, MultiplexIndicator::Plain) {
-            return e(key, format!("{}: {r}: multiplexed signals are not supported", self.path));
-        }
-        let float = dbc.signal_extended_value_type_list.iter().any(|x| {
-            x.message_id == msg.id
-                && x.signal_name == sig.name
-                && !matches!(x.signal_extended_value_type, can_dbc::SignalExtendedValueType::SignedOrUnsignedInteger)
-        });
-        if float {
-            return e(key, format!("{}: {r}: IEEE float signals (SIG_VALTYPE_) are not supported", self.path));
+        if let Some(why) = crate::speed::not_plain_integer(dbc, msg, sig) {
+            return e(key, format!("{}: {r}: {why}", self.path));
         }
         let k = match self.msgs.iter().position(|x| x.name == msg.name) {
             Some(k) => k,
@@ -210,14 +203,6 @@ impl<'a> Ctx<'a> {
             let aligned = s.size == 8 && s.start_bit % 8 == if s.byte_order == can_dbc::ByteOrder::BigEndian { 7 } else { 0 };
             (named && j1850 && aligned && (s.start_bit / 8) < len as u64).then_some(Crc::J1850 { at: (s.start_bit / 8) as u8 })
         })
-    }
-}
-
-fn num(v: &can_dbc::NumericValue) -> f64 {
-    match *v {
-        can_dbc::NumericValue::Uint(x) => x as f64,
-        can_dbc::NumericValue::Int(x) => x as f64,
-        can_dbc::NumericValue::Double(x) => x,
     }
 }
 
