@@ -94,7 +94,6 @@ impl MsgPlan {
 /// One physical channel: `raw * a + b` in gyrocomp's unit, negated when the sign bit is set.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Channel {
-    pub msg: usize,
     pub sig: Extractor,
     pub sign: Option<Extractor>,
     pub a: f64,
@@ -323,7 +322,7 @@ fn channel(cx: &mut Ctx<'_>, input: &InputConfig, k: usize, r: &SignalRef, key: 
     if let Some(sb) = sign_bit {
         line += &format!(", negative when {sb} is set");
     }
-    Ok((Channel { msg: mi, sig: ex, sign, a, b }, line))
+    Ok((Channel { sig: ex, sign, a, b }, line))
 }
 
 /// `[input.sample]`: counters (one per message, of one width) or a window.
