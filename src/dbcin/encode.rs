@@ -67,7 +67,7 @@ impl DbcPlan {
                     c.put(&mut d, k % u64::from(modulus));
                 }
                 for (ex, want, _) in &m.valid {
-                    ex.put(&mut d, *want as u64);
+                    ex.put(&mut d, *want);
                 }
                 if let Some(Crc::J1850 { at }) = m.crc {
                     d[at as usize] = j1850(&d, at as usize);

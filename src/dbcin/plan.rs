@@ -1,6 +1,6 @@
 //! The decode plan: the config's mapping resolved against the DBC, once.
 
-use super::extract::Extractor;
+use super::extract::{low_bits, Extractor};
 use super::{Measured, MOTION};
 use crate::config::dbcin::{split_ref, unit_factor, Kind, SignalRef, CHANNELS};
 use crate::config::InputConfig;
@@ -80,8 +80,9 @@ pub struct MsgPlan {
     pub crc: Option<Crc>,
     /// Indexes into [`DbcPlan::channels`] of the channels this message carries.
     pub channels: Vec<usize>,
-    /// Validity signals: extractor, the raw value wanted, the diag bit set when it differs.
-    pub valid: Vec<(Extractor, i128, u16)>,
+    /// Validity signals: extractor, the raw bits wanted (two's complement when
+    /// signed), the diag bit set when they differ.
+    pub valid: Vec<(Extractor, u64, u16)>,
 }
 
 impl MsgPlan {
@@ -392,7 +393,7 @@ fn valid(cx: &mut Ctx<'_>, input: &InputConfig, lines: &mut Vec<String>) -> Resu
                 format!("{r} = {want}: a {}-bit {} signal holds {lo}..{hi}", ex.size, if ex.signed { "signed" } else { "unsigned" }),
             );
         }
-        cx.msgs[mi].valid.push((ex, i128::from(*want), 1 << bit));
+        cx.msgs[mi].valid.push((ex, *want as u64 & low_bits(ex.size), 1 << bit));
         lines.push(format!("valid: {r} must be {want} (raw), else the sample is suspect (diag bit {bit})"));
     }
     Ok(())
