@@ -205,6 +205,19 @@ impl Sig {
     }
 }
 
+/// Why gyrocomp cannot decode `s` of `msg` (multiplexed, or an IEEE float), if it cannot.
+pub(crate) fn not_plain_integer(dbc: &Dbc, msg: &can_dbc::Message, s: &can_dbc::Signal) -> Option<&'static str> {
+    if !matches!(s.multiplexer_indicator, MultiplexIndicator::Plain) {
+        return Some("multiplexed signals are not supported");
+    }
+    let float = dbc.signal_extended_value_type_list.iter().any(|x| {
+        x.message_id == msg.id
+            && x.signal_name == s.name
+            && !matches!(x.signal_extended_value_type, can_dbc::SignalExtendedValueType::SignedOrUnsignedInteger)
+    });
+    float.then_some("IEEE float signals (SIG_VALTYPE_) are not supported")
+}
+
 /// Decodes the configured speed message of a DBC.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SpeedDecoder {
@@ -218,7 +231,8 @@ pub struct SpeedDecoder {
     scale: f64,
 }
 
-fn num(v: &NumericValue) -> f64 {
+/// A DBC number as f64.
+pub(crate) fn num(v: &NumericValue) -> f64 {
     match *v {
         NumericValue::Uint(x) => x as f64,
         NumericValue::Int(x) => x as f64,
@@ -280,16 +294,8 @@ impl SpeedDecoder {
             })?;
             let unsupported =
                 |why: String| SpeedError::Unsupported { path: path.clone(), message: msg.name.clone(), signal: s.name.clone(), why };
-            if !matches!(s.multiplexer_indicator, MultiplexIndicator::Plain) {
-                return Err(unsupported("multiplexed signals are not supported".into()));
-            }
-            let float = dbc.signal_extended_value_type_list.iter().any(|x| {
-                x.message_id == msg.id
-                    && x.signal_name == s.name
-                    && !matches!(x.signal_extended_value_type, can_dbc::SignalExtendedValueType::SignedOrUnsignedInteger)
-            });
-            if float {
-                return Err(unsupported("IEEE float signals (SIG_VALTYPE_) are not supported".into()));
+            if let Some(why) = not_plain_integer(&dbc, msg, s) {
+                return Err(unsupported(why.into()));
             }
             if s.size == 0 || s.size > 64 {
                 return Err(unsupported(format!("size {} bits (want 1..64)", s.size)));

@@ -77,7 +77,7 @@ impl DbcAssembler {
             }
         }
         for (ex, want, b) in &m.valid {
-            if ex.value(f.data) != *want {
+            if ex.raw(f.data) != *want {
                 st.diag |= b;
             }
         }

@@ -2,35 +2,30 @@
 //! `gyrocomp simulate --input-dbc` (the simulator's bus in a DBC format)
 //! and for benchmarks. Not on the decoding path; it may allocate.
 
-use super::extract::Extractor;
-use super::plan::{Assembly, Crc, DbcPlan};
+use super::extract::{gather, low_bits, Extractor};
+use super::plan::{j1850, Assembly, Crc, DbcPlan};
 
 impl Extractor {
     /// Write `raw` (its low `size` bits) into the signal's bits of `d`.
     pub fn put(&self, d: &mut [u8], raw: u64) {
         let (first, bytes, shift) = self.window();
         let w = &mut d[first..first + bytes];
-        let mut v: u128 = 0;
-        let order: Vec<usize> = if self.motorola { (0..bytes).collect() } else { (0..bytes).rev().collect() };
-        for &i in &order {
-            v = (v << 8) | u128::from(w[i]);
-        }
-        let mask: u128 = ((1u128 << self.size) - 1) << shift;
-        v = (v & !mask) | ((u128::from(raw) << shift) & mask);
-        for &i in order.iter().rev() {
-            w[i] = v as u8;
+        let mask = u128::from(low_bits(self.size)) << shift;
+        let mut v = (gather::<u128>(w, self.motorola) & !mask) | ((u128::from(raw) << shift) & mask);
+        // back in the order gather read them: the last byte read holds the low bits
+        for i in 0..bytes {
+            w[if self.motorola { bytes - 1 - i } else { i }] = v as u8;
             v >>= 8;
         }
     }
 
     /// The raw value nearest to `x`, saturated at the signal's range (two's complement bits when signed).
     pub fn quantise(&self, x: f64) -> u64 {
-        let n = u32::from(self.size);
-        let (lo, hi) =
-            if self.signed { (-(2f64.powi(n as i32 - 1)), 2f64.powi(n as i32 - 1) - 1.0) } else { (0.0, 2f64.powi(n as i32) - 1.0) };
+        let (lo, hi) = self.raw_range();
+        let (lo, hi) = (lo as f64, hi as f64);
         let r = if x.is_finite() { x.round().clamp(lo, hi) } else { 0.0 };
         if r < 0.0 {
-            (r as i64) as u64 & if n == 64 { u64::MAX } else { (1u64 << n) - 1 }
+            (r as i64) as u64 & low_bits(self.size)
         } else {
             r as u64
         }
@@ -72,32 +67,16 @@ impl DbcPlan {
                     c.put(&mut d, k % u64::from(modulus));
                 }
                 for (ex, want, _) in &m.valid {
-                    ex.put(&mut d, *want as u64);
+                    ex.put(&mut d, *want);
                 }
                 if let Some(Crc::J1850 { at }) = m.crc {
-                    d[at as usize] = 0;
-                    d[at as usize] = crc8_j1850(&d, at as usize);
+                    d[at as usize] = j1850(&d, at as usize);
                 }
                 let id = if m.extended && m.mask != 0x1FFF_FFFF { m.id | 3 << 26 } else { m.id };
                 Encoded { id, extended: m.extended, data: d }
             })
             .collect()
     }
-}
-
-/// CRC-8 SAE J1850 of `d` without its byte `skip`.
-fn crc8_j1850(d: &[u8], skip: usize) -> u8 {
-    let mut c: u8 = 0xFF;
-    for (i, b) in d.iter().enumerate() {
-        if i == skip {
-            continue;
-        }
-        c ^= b;
-        for _ in 0..8 {
-            c = if c & 0x80 != 0 { (c << 1) ^ 0x1D } else { c << 1 };
-        }
-    }
-    c ^ 0xFF
 }
 
 #[cfg(test)]

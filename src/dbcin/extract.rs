@@ -51,36 +51,13 @@ impl Extractor {
     #[inline]
     pub fn raw(&self, d: &[u8]) -> u64 {
         let w = &d[self.first as usize..self.first as usize + self.bytes as usize];
-        if self.bytes <= 8 {
-            let mut v: u64 = 0;
-            if self.motorola {
-                for b in w {
-                    v = (v << 8) | u64::from(*b);
-                }
-            } else {
-                for b in w.iter().rev() {
-                    v = (v << 8) | u64::from(*b);
-                }
-            }
-            let v = v >> self.shift;
-            return if self.size == 64 { v } else { v & ((1u64 << self.size) - 1) };
-        }
-        let mut v: u128 = 0;
-        if self.motorola {
-            for b in w {
-                v = (v << 8) | u128::from(*b);
-            }
+        // a 9-byte window (a 64-bit signal not on a byte boundary) needs 72 bits
+        let v = if self.bytes <= 8 {
+            gather::<u64>(w, self.motorola) >> self.shift
         } else {
-            for b in w.iter().rev() {
-                v = (v << 8) | u128::from(*b);
-            }
-        }
-        let v = (v >> self.shift) as u64;
-        if self.size == 64 {
-            v
-        } else {
-            v & ((1u64 << self.size) - 1)
-        }
+            (gather::<u128>(w, self.motorola) >> self.shift) as u64
+        };
+        v & low_bits(self.size)
     }
 
     /// The raw value as a number, sign-extended when the signal is signed.
@@ -107,10 +84,40 @@ impl Extractor {
         }
     }
 
+    /// The raw values the signal holds, lowest and highest (two's complement when signed).
+    pub fn raw_range(&self) -> (i128, i128) {
+        let n = self.size;
+        if self.signed {
+            (-(1i128 << (n - 1)), (1i128 << (n - 1)) - 1)
+        } else {
+            (0, (1i128 << n) - 1)
+        }
+    }
+
     /// The byte window: first byte, bytes, shift.
     pub(super) fn window(&self) -> (usize, usize, u32) {
         (self.first as usize, self.bytes as usize, u32::from(self.shift))
     }
+}
+
+/// The window's bytes as one big-endian (Motorola) or little-endian (Intel) number.
+#[inline]
+pub(super) fn gather<T>(w: &[u8], motorola: bool) -> T
+where
+    T: Default + From<u8> + std::ops::Shl<u32, Output = T> + std::ops::BitOr<Output = T>,
+{
+    let step = |v: T, b: &u8| (v << 8) | T::from(*b);
+    if motorola {
+        w.iter().fold(T::default(), step)
+    } else {
+        w.iter().rev().fold(T::default(), step)
+    }
+}
+
+/// The mask of the low `size` bits (1..=64).
+#[inline]
+pub(super) fn low_bits(size: u8) -> u64 {
+    u64::MAX >> (64 - u32::from(size))
 }
 
 #[cfg(test)]

@@ -1,10 +1,11 @@
 //! The decode plan: the config's mapping resolved against the DBC, once.
 
-use super::extract::Extractor;
+use super::extract::{low_bits, Extractor};
 use super::{Measured, MOTION};
 use crate::config::dbcin::{split_ref, unit_factor, Kind, SignalRef, CHANNELS};
 use crate::config::InputConfig;
-use can_dbc::{Dbc, Message, MessageId, MultiplexIndicator, Signal};
+use crate::speed::num;
+use can_dbc::{Dbc, Message, MessageId, Signal};
 
 /// Most messages one sample may span.
 pub const MAX_MESSAGES: usize = 16;
@@ -31,17 +32,21 @@ impl Crc {
     #[inline]
     pub fn ok(&self, d: &[u8]) -> bool {
         match *self {
-            Crc::J1850 { at } => {
-                let mut c: u8 = 0xFF;
-                for (i, b) in d.iter().enumerate() {
-                    if i != at as usize {
-                        c = J1850[(c ^ b) as usize];
-                    }
-                }
-                c ^ 0xFF == d[at as usize]
-            }
+            Crc::J1850 { at } => j1850(d, at as usize) == d[at as usize],
         }
     }
+}
+
+/// CRC-8 SAE J1850 of `d` without its byte `skip`.
+#[inline]
+pub(super) fn j1850(d: &[u8], skip: usize) -> u8 {
+    let mut c: u8 = 0xFF;
+    for (i, b) in d.iter().enumerate() {
+        if i != skip {
+            c = J1850[(c ^ b) as usize];
+        }
+    }
+    c ^ 0xFF
 }
 
 /// CRC-8 SAE J1850 (poly 0x1D) by byte, made at compile time.
@@ -75,8 +80,9 @@ pub struct MsgPlan {
     pub crc: Option<Crc>,
     /// Indexes into [`DbcPlan::channels`] of the channels this message carries.
     pub channels: Vec<usize>,
-    /// Validity signals: extractor, the raw value wanted, the diag bit set when it differs.
-    pub valid: Vec<(Extractor, i128, u16)>,
+    /// Validity signals: extractor, the raw bits wanted (two's complement when
+    /// signed), the diag bit set when they differ.
+    pub valid: Vec<(Extractor, u64, u16)>,
 }
 
 impl MsgPlan {
@@ -89,7 +95,6 @@ impl MsgPlan {
 /// One physical channel: `raw * a + b` in gyrocomp's unit, negated when the sign bit is set.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Channel {
-    pub msg: usize,
     pub sig: Extractor,
     pub sign: Option<Extractor>,
     pub a: f64,
@@ -150,16 +155,8 @@ impl<'a> Ctx<'a> {
             let known: Vec<&str> = msg.signals.iter().map(|x| x.name.as_str()).collect();
             return e(key, format!("{}: message {m} has no signal named {s:?} (it has: {})", self.path, known.join(", ")));
         };
-        if !matches!(sig.multiplexer_indicator, MultiplexIndicator::Plain) {
-            return e(key, format!("{}: {r}: multiplexed signals are not supported", self.path));
-        }
-        let float = dbc.signal_extended_value_type_list.iter().any(|x| {
-            x.message_id == msg.id
-                && x.signal_name == sig.name
-                && !matches!(x.signal_extended_value_type, can_dbc::SignalExtendedValueType::SignedOrUnsignedInteger)
-        });
-        if float {
-            return e(key, format!("{}: {r}: IEEE float signals (SIG_VALTYPE_) are not supported", self.path));
+        if let Some(why) = crate::speed::not_plain_integer(dbc, msg, sig) {
+            return e(key, format!("{}: {r}: {why}", self.path));
         }
         let k = match self.msgs.iter().position(|x| x.name == msg.name) {
             Some(k) => k,
@@ -206,14 +203,6 @@ impl<'a> Ctx<'a> {
             let aligned = s.size == 8 && s.start_bit % 8 == if s.byte_order == can_dbc::ByteOrder::BigEndian { 7 } else { 0 };
             (named && j1850 && aligned && (s.start_bit / 8) < len as u64).then_some(Crc::J1850 { at: (s.start_bit / 8) as u8 })
         })
-    }
-}
-
-fn num(v: &can_dbc::NumericValue) -> f64 {
-    match *v {
-        can_dbc::NumericValue::Uint(x) => x as f64,
-        can_dbc::NumericValue::Int(x) => x as f64,
-        can_dbc::NumericValue::Double(x) => x,
     }
 }
 
@@ -334,7 +323,7 @@ fn channel(cx: &mut Ctx<'_>, input: &InputConfig, k: usize, r: &SignalRef, key: 
     if let Some(sb) = sign_bit {
         line += &format!(", negative when {sb} is set");
     }
-    Ok((Channel { msg: mi, sig: ex, sign, a, b }, line))
+    Ok((Channel { sig: ex, sign, a, b }, line))
 }
 
 /// `[input.sample]`: counters (one per message, of one width) or a window.
@@ -397,14 +386,14 @@ fn valid(cx: &mut Ctx<'_>, input: &InputConfig, lines: &mut Vec<String>) -> Resu
             return e("input.valid", format!("{r} is in a message no mapped signal is in"));
         }
         let ex = Extractor::of(sig, cx.msgs[mi].len).or_else(|why| e("input.valid", format!("{}: {r}: {why}", cx.path)))?;
-        let (lo, hi) = if ex.signed { (-(1i128 << (ex.size - 1)), (1i128 << (ex.size - 1)) - 1) } else { (0, (1i128 << ex.size) - 1) };
+        let (lo, hi) = ex.raw_range();
         if !(lo..=hi).contains(&i128::from(*want)) {
             return e(
                 "input.valid",
                 format!("{r} = {want}: a {}-bit {} signal holds {lo}..{hi}", ex.size, if ex.signed { "signed" } else { "unsigned" }),
             );
         }
-        cx.msgs[mi].valid.push((ex, i128::from(*want), 1 << bit));
+        cx.msgs[mi].valid.push((ex, *want as u64 & low_bits(ex.size), 1 << bit));
         lines.push(format!("valid: {r} must be {want} (raw), else the sample is suspect (diag bit {bit})"));
     }
     Ok(())
