@@ -1114,23 +1114,8 @@ fn _gyrocomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_bench_step, m)?)?;
     m.add("CSV_COLUMNS", core_replay::CSV_HEADER.trim().split(',').collect::<Vec<_>>())?;
     let fl = PyDict::new(m.py());
-    for (k, v) in [
-        ("SUSPECT", flags::SUSPECT),
-        ("WARMUP", flags::WARMUP),
-        ("LEARNING", flags::LEARNING),
-        ("RESYNC", flags::RESYNC),
-        ("JERK", flags::JERK),
-        ("THERMAL_CLAMP", flags::THERMAL_CLAMP),
-        ("RATE_SAT", flags::RATE_SAT),
-        ("BUS_SILENT", flags::BUS_SILENT),
-        ("STANDSTILL", flags::STANDSTILL),
-        ("GATED", flags::GATED),
-        ("TX_DROP", flags::TX_DROP),
-        ("RELEVEL", flags::RELEVEL),
-        ("MAG_DISTURBED", flags::MAG_DISTURBED),
-        ("SPEED_AIDED", flags::SPEED_AIDED),
-    ] {
-        fl.set_item(k, v)?;
+    for (name, bit) in gyrocomp::mcapout::FLAG_NAMES {
+        fl.set_item(name.to_ascii_uppercase(), bit)?;
     }
     m.add("FLAGS", fl)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

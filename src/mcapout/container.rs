@@ -123,11 +123,10 @@ impl Chunker {
         c.data.extend_from_slice(&h);
         if let Err(e) = data(&mut c.data) {
             c.data.truncate(at);
-            // a chunk closed before this message is handed on all the same
+            // a chunk this message closed stays open: the next message closes it
             if let Some(f) = full {
                 let next = std::mem::replace(&mut self.open, f);
                 self.spare.push(next);
-                return Err(e);
             }
             return Err(e);
         }
