@@ -49,6 +49,7 @@ pub mod read;
 pub mod refdata;
 pub mod report;
 pub mod trials;
+pub mod trials_report;
 
 pub use check::Checks;
 pub use cli::{cli, GapArgs};
@@ -153,19 +154,28 @@ pub fn analyse(
     analyse_with(meas, truth, truth_has_temp, base, profile, None)
 }
 
-/// [`analyse`] with a truth derived from a measured reference
-/// ([`refdata`]): its reference noise (a white density, deg/s/sqrt(Hz)) is
-/// added in quadrature to the base model's `gyro_white`, and how it was
-/// derived goes into the report (`truth_from`).
-pub fn analyse_with(
+/// Steps 1 and 2 up to the base model's fit: the joined samples, the
+/// checks, the noise model scaled to the data, the design and the base fit.
+pub(crate) struct Prepared {
+    pub s: read::Samples,
+    pub bins: Bins,
+    pub checks: Checks,
+    pub noise: NoiseModel,
+    pub design: Design,
+    pub free: Vec<Term>,
+    pub base_tau: f64,
+    pub base_fit: fit::Fit,
+}
+
+/// Read, check and fit the base model (see [`analyse_with`]).
+pub(crate) fn prepare(
     meas: &[MeasRow],
     truth: &[TruthIn],
     truth_has_temp: bool,
     base: &SensorModel,
     profile: &Profile,
     derived: Option<&refdata::Derivation>,
-) -> Result<GapResult, String> {
-    let start = std::time::Instant::now();
+) -> Result<Prepared, String> {
     if meas.is_empty() {
         return Err("no measured samples".into());
     }
@@ -183,7 +193,9 @@ pub fn analyse_with(
     let ref_white = derived.map_or(0.0, |d| d.reference_white_density);
     let white = base.noise.gyro_white.hypot(ref_white);
     let noise0 = NoiseModel::new(&s, white, base.noise.gyro_bias_walk, profile.gyro_lsb);
-    let rates = check::rates(&s, &bins, &noise0)?;
+    // the pairing check with the reference's own noise (at rest), not the moving level taken from the data
+    let pair_white = base.noise.gyro_white.hypot(derived.map_or(0.0, |d| d.rest_density()));
+    let rates = check::rates(&s, &bins, &NoiseModel::new(&s, pair_white, base.noise.gyro_bias_walk, profile.gyro_lsb))?;
     let mut design = Design::new(&s, &noise0);
     let free = free_terms(base);
     let base_tau = base.gyro.warmup_transient.as_ref().map_or(f64::NAN, |w| w.tau_s);
@@ -202,10 +214,28 @@ pub fn analyse_with(
     }
     drop(design);
     let mut design = Design::new(&s, &noise);
-    let floor = noise.floor_1s(s.rate_hz);
     let base_fit = design
         .fit_any(&free, if free.iter().any(|t| t.effect == Effect::WarmupTransient) { f64::NAN } else { base_tau }, true)
         .ok_or("the base model's free coefficients cannot be fitted from this data (singular)")?;
+    Ok(Prepared { s, bins, checks, noise, design, free, base_tau, base_fit })
+}
+
+/// [`analyse`] with a truth derived from a measured reference
+/// ([`refdata`]): its reference noise (a white density, deg/s/sqrt(Hz)) is
+/// added in quadrature to the base model's `gyro_white`, and how it was
+/// derived goes into the report (`truth_from`).
+pub fn analyse_with(
+    meas: &[MeasRow],
+    truth: &[TruthIn],
+    truth_has_temp: bool,
+    base: &SensorModel,
+    profile: &Profile,
+    derived: Option<&refdata::Derivation>,
+) -> Result<GapResult, String> {
+    let start = std::time::Instant::now();
+    let p = prepare(meas, truth, truth_has_temp, base, profile, derived)?;
+    let Prepared { s, bins, checks, noise, mut design, free, base_tau, base_fit } = p;
+    let floor = noise.floor_1s(s.rate_hz);
     // 3. localise the base model's residual, 4. name
     let initial_resid = fit::residual(&s, &base_fit);
     let rms_initial = bins.rms_1s(&initial_resid);

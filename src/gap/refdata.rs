@@ -103,6 +103,18 @@ pub struct Derived {
 }
 
 impl Derivation {
+    /// The reference's own noise at rest as a white density at the output
+    /// rate, deg/s/sqrt(Hz): what the pairing check (rates) is judged with,
+    /// since the moving level is estimated from measured minus reference and
+    /// would hide a mismatched pair.
+    pub fn rest_density(&self) -> f64 {
+        if self.rate_hz.is_finite() && self.rate_hz > 0.0 {
+            (self.reference_rest_rms.iter().map(|x| x * x).sum::<f64>() / 3.0).sqrt() / (self.rate_hz / 2.0).sqrt()
+        } else {
+            0.0
+        }
+    }
+
     /// A simulated truth (nothing derived).
     pub fn simulated() -> Derivation {
         Derivation {
