@@ -201,3 +201,81 @@ fn broad_trials_of_one_unit() {
         }
     }
 }
+
+/// `--static`: a still unit logged in two bursts 600 s apart, one row
+/// logged twice: two stretches of one power cycle, the repeated row kept
+/// once, the turn-on bias given with its interval, nothing else named.
+#[test]
+fn a_still_unit_in_two_bursts() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    let bias = [4.5, -0.2, 1.1];
+    let mut rng = 12345u64;
+    let mut noise = || {
+        // a deterministic uniform generator; the sum of 12 is about normal
+        (0..12)
+            .map(|_| {
+                rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                (rng >> 11) as f64 / (1u64 << 53) as f64
+            })
+            .sum::<f64>()
+            - 6.0
+    };
+    let mut csv = String::from("t,gx,gy,gz,ax,ay,az,mx,my,mz,temp\n");
+    for burst in [0.0, 600.0] {
+        for k in 0..2000 {
+            let t = burst + 10.0 + k as f64 * 0.01;
+            let g: Vec<f64> = bias.iter().map(|b| b + 0.1 * noise()).collect();
+            let row = format!("{t:.4},{},{},{},0.01,-0.02,-1.0,,,,{:.2}\n", g[0], g[1], g[2], 30.0 + burst / 600.0);
+            csv += &row;
+            if k == 700 {
+                csv += &row;
+            }
+        }
+    }
+    std::fs::write(p.join("imu.csv"), csv).unwrap();
+    std::fs::write(p.join("base.toml"), "[gyro]\neffects = [\"turn_on_bias\"]\n").unwrap();
+    let o = gap(
+        &[Path::new("--measured"), &p.join("imu.csv"), Path::new("--static"), Path::new("--model"), &p.join("base.toml")],
+        &p.join("out"),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    println!("{}", String::from_utf8_lossy(&o.stdout));
+    let r = report(&p.join("out"));
+    assert_eq!(r["truth_from"]["stretches"].as_array().unwrap().len(), 2);
+    assert_eq!(r["samples"], 4000, "the repeated row is kept once");
+    assert!(r["findings"].as_array().unwrap().is_empty(), "{}", r["findings"]);
+    for (a, b) in bias.iter().enumerate() {
+        let c = &r["base_coefficients"][a];
+        let (v, se) = (c["coefficient"].as_f64().unwrap(), c["std_error"].as_f64().unwrap());
+        assert!((v - b).abs() < 4.0 * se, "turn-on bias {a}: {v} +- {se}");
+    }
+}
+
+/// The static thermal recordings (`../shared/static-thermal`; skipped,
+/// saying so, without it): on the MPU6050 runs `gap --static` names nothing
+/// but what the base model fits (the turn-on bias); at most a linear slope.
+#[test]
+fn static_thermal_recordings_claim_no_more_than_they_carry() {
+    let Some(dir) = realdata_dir().map(|d| d.join("../static-thermal")).filter(|d| d.is_dir()) else {
+        println!("skipped: ../shared/static-thermal not found");
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(d.path().join("base.toml"), "[gyro]\neffects = [\"turn_on_bias\"]\n").unwrap();
+    for name in ["mpu6050-static-10min", "mpu6050-static-x-forward", "mpu6050-static-z-front-x-up", "mpu6050-static-z-front-y-down"] {
+        let imu = dir.join(name).join("imu.csv.gz");
+        if !imu.is_file() {
+            println!("skipped {name}: not found");
+            continue;
+        }
+        let out = d.path().join(name);
+        let o = gap(&[Path::new("--measured"), &imu, Path::new("--static"), Path::new("--model"), &d.path().join("base.toml")], &out);
+        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+        println!("{name}:\n{}", String::from_utf8_lossy(&o.stdout));
+        let r = report(&out);
+        for f in r["findings"].as_array().unwrap() {
+            assert_eq!(f["effect"], "thermal_linear", "{name}: a static recording of 0.5 degC carries no {}", f["effect"]);
+        }
+    }
+}

@@ -116,6 +116,15 @@ pub fn print_result(r: &GapResult) {
         nm.sigma, nm.bias_walk, rep.t_min
     );
     println!("residual RMS (1-s means) base model [{}] deg/s, noise floor {:.5} deg/s", report::fmt3(&rep.rms_initial), rep.noise_floor_1s);
+    for c in &rep.base_coefficients {
+        println!(
+            "base model's free {}: {:.4e} +- {:.1e} {}",
+            c.term,
+            c.coefficient,
+            c.std_error,
+            if c.unit == "1" { "(dimensionless)" } else { &c.unit }
+        );
+    }
     for f in &rep.findings {
         println!(
             "found {}: {:.4e} +- {:.1e} {} (t = {:.1}); RMS [{}] -> [{}]",

@@ -336,6 +336,17 @@ pub fn analyse_with(
         samples: s.len(),
         duration_s: s.duration(),
         free_base_terms: free.iter().map(|t| t.label()).collect(),
+        base_coefficients: free
+            .iter()
+            .filter_map(|t| {
+                fin.index(t).map(|k| report::Coefficient {
+                    term: t.label(),
+                    coefficient: fin.beta[k],
+                    std_error: fin.se(k),
+                    unit: t.unit().into(),
+                })
+            })
+            .collect(),
         truth_from: derived.map(|d| serde_json::to_value(d).unwrap_or_default()),
     };
     let pd = PlotData { initial: bins.means_1s(&initial_resid), fin: bins.means_1s(&named.resid), finds: plot_finds };

@@ -116,6 +116,7 @@ fn read_meas_csv(path: &Path, bytes: &[u8]) -> Result<Vec<MeasRow>, String> {
     let text = std::str::from_utf8(bytes).map_err(|_| format!("{}: not UTF-8 text", path.display()))?;
     let mut out = Vec::new();
     let mut header = false;
+    let mut prev: Option<[f64; 11]> = None;
     for (i, l) in text.lines().enumerate() {
         let no = i + 1;
         if l.trim().is_empty() {
@@ -130,6 +131,11 @@ fn read_meas_csv(path: &Path, bytes: &[u8]) -> Result<Vec<MeasRow>, String> {
             continue;
         }
         let v = parse_meas_row(l, path, no)?;
+        // a row repeated field for field is one sample logged twice (the FIRM files): kept once
+        if prev.is_some_and(|p: [f64; 11]| p.iter().zip(&v).all(|(a, b)| a.to_bits() == b.to_bits())) {
+            continue;
+        }
+        prev = Some(v);
         if let Some(p) = out.last().map(|r: &MeasRow| r.t) {
             if v[0] <= p {
                 return Err(format!("{}:{no}: time {} is not after the previous row's {p}", path.display(), v[0]));
@@ -301,6 +307,15 @@ fn median_step(truth: &[TruthIn]) -> f64 {
     d[d.len() / 2]
 }
 
+/// The time the samples `t` cover: their span less the steps longer than
+/// max(1 s, 10 median steps `dt`) (a reference lost, bursts of a static
+/// recording); the span itself when there is no such step.
+fn covered(t: &[f64], dt: f64) -> f64 {
+    let jump = (10.0 * dt).max(1.0);
+    let gaps: f64 = t.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > jump).sum();
+    (t[t.len() - 1] - t[0]) - gaps
+}
+
 /// Join measured and truth on time; evaluate the fixed part of the base model.
 pub fn join(meas: &[MeasRow], truth: &[TruthIn], truth_has_temp: bool, base: &GyroModel) -> Result<Samples, String> {
     if truth.len() < 2 {
@@ -427,7 +442,7 @@ pub fn join(meas: &[MeasRow], truth: &[TruthIn], truth_has_temp: bool, base: &Gy
         y: v3(),
         meas_temp: Vec::with_capacity(n),
         truth_temp: truth_has_temp,
-        rate_hz: if span > 0.0 && (n - 1) as f64 / span > 0.9 / dt { (n - 1) as f64 / span } else { 1.0 / dt },
+        rate_hz: if span > 0.0 { (n - 1) as f64 / covered(&pairs.iter().map(tt).collect::<Vec<_>>(), dt) } else { 1.0 / dt },
         t0_lin: base.thermal_linear.as_ref().map(|c| c.t0).or(base.thermal_quadratic.as_ref().map(|c| c.t0)).unwrap_or(25.0),
         t0_quad: 25.0,
     };

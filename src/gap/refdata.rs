@@ -140,22 +140,33 @@ impl Derivation {
 /// report.md's paragraph on how the truth was derived.
 pub fn render_md(v: &serde_json::Value) -> String {
     let Ok(d) = serde_json::from_value::<DerivationView>(v.clone()) else { return String::new() };
-    let mut s = format!(
-        "Truth derived from a {} ({} input samples at {:.1} Hz): rates low-passed at {} Hz (zero-phase, {} taps each side; the \
-         measured gyro alike), every {}th sample kept ({:.2} Hz), {} samples in {} stretch(es) where it is valid. Specific force: {}. \
-         Temperature: {}.\n\n",
-        if d.source == "static" { "unit lying still" } else { "measured reference" },
-        d.input_samples,
-        d.input_rate_hz,
-        d.bandwidth_hz,
-        d.half_width,
-        d.decimation,
-        d.rate_hz,
-        d.samples,
-        d.stretches.len(),
-        d.specific_force,
-        d.temperature
-    );
+    let mut s = if d.source == "static" {
+        format!(
+            "Truth of a unit lying still: {} samples at {:.1} Hz (median), in {} stretch(es) between time jumps > {STATIC_JUMP_S} s \
+             (one power cycle), zero rotation. Specific force: {}. Temperature: {}.\n\n",
+            d.samples,
+            d.input_rate_hz.unwrap_or(f64::NAN),
+            d.stretches.len(),
+            d.specific_force,
+            d.temperature
+        )
+    } else {
+        format!(
+            "Truth derived from a measured reference ({} input samples at {:.1} Hz): rates low-passed at {} Hz (zero-phase, {} taps \
+             each side; the measured gyro alike), every {}th sample kept ({:.2} Hz), {} samples in {} stretch(es) where it is valid. \
+             Specific force: {}. Temperature: {}.\n\n",
+            d.input_samples,
+            d.input_rate_hz.unwrap_or(f64::NAN),
+            d.bandwidth_hz.unwrap_or(f64::NAN),
+            d.half_width,
+            d.decimation,
+            d.rate_hz.unwrap_or(f64::NAN),
+            d.samples,
+            d.stretches.len(),
+            d.specific_force,
+            d.temperature
+        )
+    };
     if let Some(m) = &d.mount {
         s += &format!(
             "Mount (reference body to sensor) from the rest phase {:.1}..{:.1} s: roll {:.3} deg, pitch {:.3} deg ({:.3} deg in all); {}.\n\n",
@@ -177,10 +188,10 @@ pub fn render_md(v: &serde_json::Value) -> String {
 #[derive(serde::Deserialize)]
 struct DerivationView {
     source: String,
-    bandwidth_hz: f64,
-    input_rate_hz: f64,
+    bandwidth_hz: Option<f64>,
+    input_rate_hz: Option<f64>,
     decimation: usize,
-    rate_hz: f64,
+    rate_hz: Option<f64>,
     half_width: usize,
     mount: Option<MountView>,
     specific_force: String,
@@ -465,8 +476,14 @@ pub fn from_reference(meas: &[MeasRow], r: &Reference, bandwidth: f64) -> Result
     finish(m, t, info, has_temp)
 }
 
-/// The truth of a unit known to lie still.
-pub fn from_static(meas: &[MeasRow], bandwidth: f64) -> Result<Derived, String> {
+/// A time jump that splits a static recording into bursts, s.
+pub const STATIC_JUMP_S: f64 = 1.0;
+
+/// The truth of a unit known to lie still: every sample as it is (no
+/// filter: nothing is derived, and loggers of static data sample
+/// irregularly), the rate zero, gravity the accelerometer's mean; bursts
+/// between time jumps (> [`STATIC_JUMP_S`]) are stretches of one power cycle.
+pub fn from_static(meas: &[MeasRow], _bandwidth: f64) -> Result<Derived, String> {
     let step = median_step(meas);
     if step.is_nan() || step <= 0.0 || meas.len() < 10 {
         return Err("the measured data has fewer than 10 samples or its time does not advance".into());
@@ -476,16 +493,25 @@ pub fn from_static(meas: &[MeasRow], bandwidth: f64) -> Result<Derived, String> 
         return Err("--static: the measured data has no accelerometer (gravity is taken from its mean)".into());
     }
     let mean = [0, 1, 2].map(|a| acc.iter().map(|m| m.acc[a]).sum::<f64>() / acc.len() as f64);
-    let ok = regular(meas, step);
-    let (m, t, d, h) = filter(&Input { meas, w: vec![[0.0; 3]; meas.len()], ok }, 1.0 / step, bandwidth, Some(mean));
+    let truth: Vec<TruthIn> =
+        meas.iter().map(|m| TruthIn { t: m.t, rate: [0.0; 3], f: mean, temp: f64::NAN, wd: Some([0.0; 3]) }).collect();
+    let mut stretches: Vec<[f64; 2]> = Vec::new();
+    for (i, m) in meas.iter().enumerate() {
+        if i == 0 || m.t - meas[i - 1].t > STATIC_JUMP_S {
+            stretches.push([m.t, m.t]);
+        }
+        if let Some(l) = stretches.last_mut() {
+            l[1] = m.t;
+        }
+    }
     let (has_temp, temperature) = temperature_of(meas);
     let info = Derivation {
         source: "static".into(),
-        bandwidth_hz: bandwidth,
+        bandwidth_hz: f64::NAN,
         input_rate_hz: 1.0 / step,
-        decimation: d,
-        rate_hz: 1.0 / (step * d as f64),
-        half_width: h,
+        decimation: 1,
+        rate_hz: 1.0 / step,
+        half_width: 0,
         mount: None,
         specific_force: format!(
             "the accelerometer's mean over the recording, [{:.4}, {:.4}, {:.4}] g (the unit lies still: zero rotation)",
@@ -496,10 +522,10 @@ pub fn from_static(meas: &[MeasRow], bandwidth: f64) -> Result<Derived, String> 
         reference_moving_rms: [0.0; 3],
         reference_white_density: 0.0,
         input_samples: meas.len(),
-        samples: t.len(),
-        stretches: stretches(&t, d, step),
+        samples: truth.len(),
+        stretches,
     };
-    finish(m, t, info, has_temp)
+    finish(meas.to_vec(), truth, info, has_temp)
 }
 
 #[cfg(test)]

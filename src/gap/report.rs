@@ -77,9 +77,20 @@ pub struct Report {
     pub samples: usize,
     pub duration_s: f64,
     pub free_base_terms: Vec<String>,
+    /// The base model's free coefficients in the final fit (e.g. the turn-on bias), with their standard errors.
+    pub base_coefficients: Vec<Coefficient>,
     /// How the truth was derived from a measured reference or a still unit (`gap --reference` / `--static`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub truth_from: Option<serde_json::Value>,
+}
+
+/// A fitted coefficient.
+#[derive(Clone, Debug, Serialize)]
+pub struct Coefficient {
+    pub term: String,
+    pub coefficient: f64,
+    pub std_error: f64,
+    pub unit: String,
 }
 
 /// What the plots show.
