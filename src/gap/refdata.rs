@@ -505,6 +505,7 @@ pub fn from_static(meas: &[MeasRow], _bandwidth: f64) -> Result<Derived, String>
         }
     }
     let (has_temp, temperature) = temperature_of(meas);
+    let temperature = temperature.replace(", filtered alike", "");
     let info = Derivation {
         source: "static".into(),
         bandwidth_hz: f64::NAN,
