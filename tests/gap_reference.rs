@@ -279,3 +279,42 @@ fn static_thermal_recordings_claim_no_more_than_they_carry() {
         }
     }
 }
+
+/// Bad input: refused with what and where, nothing written.
+#[test]
+fn bad_reference_input_is_refused_with_its_place() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    write_trial(&p.join("a"), 31);
+    std::fs::write(p.join("base.toml"), BASE).unwrap();
+    let (imu, refa, base) = (p.join("a/imu.csv"), p.join("a/reference.csv"), p.join("base.toml"));
+    let text = std::fs::read_to_string(&refa).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    lines[5] = format!("{},0.1,1e300,3.0,1,1", lines[5].split(',').next().unwrap());
+    std::fs::write(p.join("bad.csv"), lines.join("\n")).unwrap();
+    let (bad, nope) = (p.join("bad.csv"), p.join("nope.csv"));
+    let cases: Vec<(Vec<&std::ffi::OsStr>, &str)> = vec![
+        (vec!["--reference".as_ref(), bad.as_os_str()], "line 6, column pitch"),
+        (vec!["--reference".as_ref(), refa.as_os_str(), refa.as_os_str()], "--reference: 2 file(s) for 1"),
+        (vec!["--reference".as_ref(), refa.as_os_str(), "--bandwidth".as_ref(), "0".as_ref()], "--bandwidth 0"),
+        (vec!["--reference".as_ref(), refa.as_os_str(), "--static".as_ref()], "exactly one of"),
+        (vec!["--reference".as_ref(), nope.as_os_str()], "nope.csv"),
+    ];
+    for (args, want) in cases {
+        let out = p.join("out");
+        let o = Command::new(bin())
+            .arg("gap")
+            .arg("--measured")
+            .arg(&imu)
+            .args(&args)
+            .arg("--model")
+            .arg(&base)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && e.contains(want), "{args:?}: want {want:?}: {e}");
+        assert!(!out.exists(), "{args:?}: wrote {}", out.display());
+    }
+}

@@ -450,6 +450,14 @@ pub fn from_reference(meas: &[MeasRow], r: &Reference, bandwidth: f64) -> Result
     let reg = regular(meas, step);
     let ok: Vec<bool> = (0..meas.len()).map(|i| reg[i] && wr[i].is_some() && meas[i].acc.iter().all(|x| x.is_finite())).collect();
     let w: Vec<[f64; 3]> = wr.iter().map(|x| x.map_or([0.0; 3], |v| (mq * v).into())).collect();
+    let h = (2.0 / (step * bandwidth)).ceil();
+    if h * 2.0 + 3.0 > meas.len() as f64 {
+        return Err(format!(
+            "the filter at --bandwidth {bandwidth} Hz spans {h} samples each side at {:.1} Hz, more than the {} measured samples",
+            1.0 / step,
+            meas.len()
+        ));
+    }
     let (m, t, d, h) = filter(&Input { meas, w, ok }, 1.0 / step, bandwidth, None);
     let rate_hz = 1.0 / (step * d as f64);
     let rest_out: Vec<bool> = t.iter().map(|x| rest[meas.partition_point(|m| m.t < x.t).min(meas.len() - 1)]).collect();

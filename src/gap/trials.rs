@@ -123,13 +123,10 @@ pub fn fit_fixed(d: &Derived, base: &SensorModel, profile: &Profile, terms: &[Te
         .design
         .fit_any(&all, if warm { f64::NAN } else { p.base_tau }, true)
         .ok_or("the trial's terms cannot be fitted together (singular)")?;
-    Ok(terms
+    terms
         .iter()
-        .map(|t| {
-            let k = f.index(t).expect("fitted terms are in the fit");
-            (f.beta[k], f.se(k))
-        })
-        .collect())
+        .map(|t| f.index(t).map(|k| (f.beta[k], f.se(k))).ok_or_else(|| format!("{} could not be fitted on this trial", t.label())))
+        .collect()
 }
 
 /// The joint estimate and the consistency of one term over the trials `idx`.
