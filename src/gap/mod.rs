@@ -28,6 +28,14 @@
 //!    finding (`axis` is `all` for `time_delay`: one delay is shared by all
 //!    axes and is one finding).
 //!
+//! **Real recordings.** [`refdata`] derives the truth from a measured
+//! reference (`--reference`: rates from the orientation's derivative,
+//! low-passed with the measured gyro alike; the mount at the first rest; the
+//! reference's noise in the noise model; only valid stretches) or from a
+//! unit lying still (`--static`); [`trials`] fits several trials of one
+//! unit each and jointly (consistency at 1 %, the joint model,
+//! leave-one-trial-out), [`trials_report`] prints and writes that.
+//!
 //! **Effect size in standard errors.** The standard error of a coefficient
 //! is the one this fit reports: GLS at the full rate with white noise (the
 //! model's density at the data's rate with the quantisation LSB^2/12, scaled
