@@ -132,9 +132,25 @@ fn trials_agree_on_the_delay_and_the_held_out_residual_shrinks() {
     for k in ["a", "b", "c"] {
         c.arg(p.join(k).join("reference.csv"));
     }
+    let c2 = Command::new(c.get_program())
+        .args(c.get_args())
+        .arg("--model")
+        .arg(p.join("base.toml"))
+        .arg("--out")
+        .arg(p.join("out2"))
+        .output()
+        .unwrap();
     let o = c.arg("--model").arg(p.join("base.toml")).arg("--out").arg(p.join("out")).output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     println!("{}", String::from_utf8_lossy(&o.stdout));
+    assert!(c2.status.success());
+    for f in ["trials.json", "model.toml", "a/report.json"] {
+        assert_eq!(
+            std::fs::read(p.join("out").join(f)).unwrap(),
+            std::fs::read(p.join("out2").join(f)).unwrap(),
+            "{f}: the same inputs, the same bytes"
+        );
+    }
     let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(p.join("out/trials.json")).unwrap()).unwrap();
     let rows = j["effects"].as_array().unwrap();
     let delay = rows.iter().find(|r| r["term"] == "time_delay").expect("the delay is named");
