@@ -71,8 +71,8 @@ fn simulate(c: &Case, model: SensorModel) -> (Vec<MeasRow>, Vec<TruthIn>) {
     for (tr, m, _) in samples(&run, c.seed) {
         let raw = RawSample::quantise(&prof, m.gyro, m.accel, m.magn, m.temp);
         let g = raw.gyro.map(|v| v as f64 * prof.gyro_lsb);
-        meas.push(MeasRow { t: tr.t, gyro: g, temp: m.temp });
-        truth.push(TruthIn { t: tr.t, rate: tr.rate, f: tr.f, temp: tr.temp });
+        meas.push(MeasRow { t: tr.t, gyro: g, acc: tr.f, temp: m.temp });
+        truth.push(TruthIn { t: tr.t, rate: tr.rate, f: tr.f, temp: tr.temp, wd: None });
     }
     (meas, truth)
 }

@@ -143,7 +143,7 @@ fn truth_of(scenario: &str, index: u64, env: Env) -> (Vec<Truth>, SensorModel) {
 }
 
 fn truth_in(truth: &[Truth]) -> Vec<TruthIn> {
-    truth.iter().map(|t| TruthIn { t: t.t, rate: t.rate, f: t.f, temp: t.temp }).collect()
+    truth.iter().map(|t| TruthIn { t: t.t, rate: t.rate, f: t.f, temp: t.temp, wd: None }).collect()
 }
 
 const PAPER: [Effect; 2] = [Effect::TurnOnBias, Effect::ThermalLinear];
@@ -249,7 +249,7 @@ fn measure(truth: &[Truth], model: &SensorModel, index: u64) -> Vec<MeasRow> {
         .map(|tr| {
             let m = sensor.measure(tr);
             let raw = RawSample::quantise(&p, m.gyro, m.accel, m.magn, m.temp);
-            MeasRow { t: tr.t, gyro: raw.gyro.map(|v| v as f64 * p.gyro_lsb), temp: m.temp }
+            MeasRow { t: tr.t, gyro: raw.gyro.map(|v| v as f64 * p.gyro_lsb), acc: tr.f, temp: m.temp }
         })
         .collect()
 }

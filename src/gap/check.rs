@@ -120,6 +120,16 @@ fn high_pass(m: &[f64]) -> Vec<f64> {
         .collect()
 }
 
+/// Central difference at `k` per bin from the nearest finite bins within 5 on each side (NaN if none).
+fn central(m: &[f64], k: usize) -> f64 {
+    let j = (1..=5).filter_map(|d| k.checked_sub(d)).find(|&j| m[j].is_finite());
+    let l = (1..=5).map(|d| k + d).find(|&l| l < m.len() && m[l].is_finite());
+    match (j, l) {
+        (Some(j), Some(l)) => (m[l] - m[j]) / (l - j) as f64,
+        _ => f64::NAN,
+    }
+}
+
 /// Check 2.
 pub(crate) fn rates(s: &Samples, bins: &Bins, noise: &NoiseModel) -> Result<Vec<RateCheck>, String> {
     let per_bin = s.rate_hz * super::localise::LOC_BIN_S;
@@ -128,10 +138,10 @@ pub(crate) fn rates(s: &Samples, bins: &Bins, noise: &NoiseModel) -> Result<Vec<
     for a in 0..3 {
         let tm = high_pass(&bins.means(&s.w[a]));
         let mm = high_pass(&bins.means(&s.meas[a]));
-        // the true rate's derivative (central difference of the bin means;
-        // its unit does not matter to the regression)
-        let dm: Vec<f64> =
-            (0..tm.len()).map(|k| if k == 0 || k + 1 == tm.len() { f64::NAN } else { 0.5 * (tm[k + 1] - tm[k - 1]) }).collect();
+        // the true rate's derivative (central difference of the bin means,
+        // the nearest filled bins within 5 on each side: a truth at a few Hz
+        // leaves bins empty; its unit does not matter to the regression)
+        let dm: Vec<f64> = (0..tm.len()).map(|k| central(&tm, k)).collect();
         let pts: Vec<[f64; 3]> =
             (0..tm.len()).filter(|&k| tm[k].is_finite() && mm[k].is_finite() && dm[k].is_finite()).map(|k| [tm[k], dm[k], mm[k]]).collect();
         let n = pts.len().max(1) as f64;

@@ -28,6 +28,14 @@
 //!    finding (`axis` is `all` for `time_delay`: one delay is shared by all
 //!    axes and is one finding).
 //!
+//! **Real recordings.** [`refdata`] derives the truth from a measured
+//! reference (`--reference`: rates from the orientation's derivative,
+//! low-passed with the measured gyro alike; the mount at the first rest; the
+//! reference's noise in the noise model; only valid stretches) or from a
+//! unit lying still (`--static`); [`trials`] fits several trials of one
+//! unit each and jointly (consistency at 1 %, the joint model,
+//! leave-one-trial-out), [`trials_report`] prints and writes that.
+//!
 //! **Effect size in standard errors.** The standard error of a coefficient
 //! is the one this fit reports: GLS at the full rate with white noise (the
 //! model's density at the data's rate with the quantisation LSB^2/12, scaled
@@ -41,13 +49,18 @@
 //! latter. User documentation: `docs/gap.md`.
 
 pub mod check;
+pub mod cli;
 pub mod fit;
 pub mod localise;
 pub mod name;
 pub mod read;
+pub mod refdata;
 pub mod report;
+pub mod trials;
+pub mod trials_report;
 
 pub use check::Checks;
+pub use cli::{cli, GapArgs};
 pub use fit::{all_terms, tau_grid, unit, NoiseModel, Term, COLLINEAR_R2, TAU_MAX_S};
 pub use localise::{AxisLocalisation, Localisation};
 pub use name::{Ambiguity, NotSeparable, Sensitivity, Withdrawn, MAX_FINDINGS, T_MIN};
@@ -84,14 +97,49 @@ pub struct GapResult {
     pub elapsed_s: f64,
 }
 
+/// Where the truth of a run comes from.
+#[derive(Clone, Debug)]
+pub enum Truth {
+    /// `truth.csv` as `gyrocomp simulate` writes it.
+    Simulated(PathBuf),
+    /// Derived from a measured reference ([`refdata::from_reference`]).
+    Reference { path: PathBuf, bandwidth: f64 },
+    /// A unit known to lie still ([`refdata::from_static`]).
+    Static { bandwidth: f64 },
+}
+
+/// Read the measured file and derive the truth (`truth` as `Simulated` reads `o.truth`).
+pub fn load_trial(o: &GapOptions, truth: &Truth, profile: &Profile) -> Result<refdata::Derived, String> {
+    let meas = read_measured(&o.measured, profile)?;
+    match truth {
+        Truth::Simulated(p) => {
+            let (truth, truth_has_temp) = read_truth(p)?;
+            let info = refdata::Derivation::simulated();
+            Ok(refdata::Derived { meas, truth, truth_has_temp, info })
+        }
+        Truth::Reference { path, bandwidth } => {
+            let r = crate::reference::refcsv::read_reference(path)?;
+            refdata::from_reference(&meas, &r, *bandwidth).map_err(|e| format!("{}: {e}", path.display()))
+        }
+        Truth::Static { bandwidth } => {
+            refdata::from_static(&meas, *bandwidth).map_err(|e| format!("{} (--static): {e}", o.measured.display()))
+        }
+    }
+}
+
 /// Run the workflow on files and write the outputs.
 pub fn run(o: &GapOptions) -> Result<GapResult, String> {
+    run_with(o, &Truth::Simulated(o.truth.clone()))
+}
+
+/// [`run`] with the truth from `truth`.
+pub fn run_with(o: &GapOptions, truth: &Truth) -> Result<GapResult, String> {
     let start = std::time::Instant::now();
     let profile = builtin_profile(&o.profile).ok_or_else(|| format!("unknown profile {:?}", o.profile))?;
     let base = load_base(&o.model)?;
-    let meas = read_measured(&o.measured, &profile)?;
-    let (truth, has_temp) = read_truth(&o.truth)?;
-    let mut res = analyse(&meas, &truth, has_temp, &base, &profile)?;
+    let d = load_trial(o, truth, &profile)?;
+    let derived = (!matches!(truth, Truth::Simulated(_))).then_some(&d.info);
+    let mut res = analyse_with(&d.meas, &d.truth, d.truth_has_temp, &base, &profile, derived)?;
     let plots = if o.plots { res.plots.as_ref() } else { None };
     res.files = report::write_outputs(o, &res.report, &res.model, plots)?;
     res.elapsed_s = start.elapsed().as_secs_f64();
@@ -111,7 +159,31 @@ pub fn analyse(
     base: &SensorModel,
     profile: &Profile,
 ) -> Result<GapResult, String> {
-    let start = std::time::Instant::now();
+    analyse_with(meas, truth, truth_has_temp, base, profile, None)
+}
+
+/// Steps 1 and 2 up to the base model's fit: the joined samples, the
+/// checks, the noise model scaled to the data, the design and the base fit.
+pub(crate) struct Prepared {
+    pub s: read::Samples,
+    pub bins: Bins,
+    pub checks: Checks,
+    pub noise: NoiseModel,
+    pub design: Design,
+    pub free: Vec<Term>,
+    pub base_tau: f64,
+    pub base_fit: fit::Fit,
+}
+
+/// Read, check and fit the base model (see [`analyse_with`]).
+pub(crate) fn prepare(
+    meas: &[MeasRow],
+    truth: &[TruthIn],
+    truth_has_temp: bool,
+    base: &SensorModel,
+    profile: &Profile,
+    derived: Option<&refdata::Derivation>,
+) -> Result<Prepared, String> {
     if meas.is_empty() {
         return Err("no measured samples".into());
     }
@@ -126,8 +198,12 @@ pub fn analyse(
     // 2. fit; first the checks: measured and truth belong together, the vocabulary can explain them
     let bins = Bins::new(&s);
     let temperature_rms_diff = check::temperature(&s)?;
-    let noise0 = NoiseModel::new(&s, base.noise.gyro_white, base.noise.gyro_bias_walk, profile.gyro_lsb);
-    let rates = check::rates(&s, &bins, &noise0)?;
+    let ref_white = derived.map_or(0.0, |d| d.reference_white_density);
+    let white = base.noise.gyro_white.hypot(ref_white);
+    let noise0 = NoiseModel::new(&s, white, base.noise.gyro_bias_walk, profile.gyro_lsb);
+    // the pairing check with the reference's own noise (at rest), not the moving level taken from the data
+    let pair_white = base.noise.gyro_white.hypot(derived.map_or(0.0, |d| d.rest_density()));
+    let rates = check::rates(&s, &bins, &NoiseModel::new(&s, pair_white, base.noise.gyro_bias_walk, profile.gyro_lsb))?;
     let mut design = Design::new(&s, &noise0);
     let free = free_terms(base);
     let base_tau = base.gyro.warmup_transient.as_ref().map_or(f64::NAN, |w| w.tau_s);
@@ -139,13 +215,35 @@ pub fn analyse(
     }
     let checks = Checks { temperature_rms_diff, rates, full_vocabulary_terms: full.terms.len(), full_vocabulary_variance_ratio: full_s2 };
     // the white level the data has (the model's, scaled by the full fit's whitened residual variance)
-    let noise = noise0.scaled_to_data([0, 1, 2].map(|a| full.s2_axis(a)), s.rate_hz);
+    let mut noise = noise0.scaled_to_data([0, 1, 2].map(|a| full.s2_axis(a)), s.rate_hz);
+    if derived.is_some_and(|d| d.reference_white_density > 0.0) && noise.sigma < noise0.sigma {
+        // a measured reference: never below its noise while moving (the rests are quieter)
+        noise = noise0.scaled_to_data([1.0; 3], s.rate_hz);
+    }
     drop(design);
     let mut design = Design::new(&s, &noise);
-    let floor = noise.floor_1s(s.rate_hz);
     let base_fit = design
         .fit_any(&free, if free.iter().any(|t| t.effect == Effect::WarmupTransient) { f64::NAN } else { base_tau }, true)
         .ok_or("the base model's free coefficients cannot be fitted from this data (singular)")?;
+    Ok(Prepared { s, bins, checks, noise, design, free, base_tau, base_fit })
+}
+
+/// [`analyse`] with a truth derived from a measured reference
+/// ([`refdata`]): its reference noise (a white density, deg/s/sqrt(Hz)) is
+/// added in quadrature to the base model's `gyro_white`, and how it was
+/// derived goes into the report (`truth_from`).
+pub fn analyse_with(
+    meas: &[MeasRow],
+    truth: &[TruthIn],
+    truth_has_temp: bool,
+    base: &SensorModel,
+    profile: &Profile,
+    derived: Option<&refdata::Derivation>,
+) -> Result<GapResult, String> {
+    let start = std::time::Instant::now();
+    let p = prepare(meas, truth, truth_has_temp, base, profile, derived)?;
+    let Prepared { s, bins, checks, noise, mut design, free, base_tau, base_fit } = p;
+    let floor = noise.floor_1s(s.rate_hz);
     // 3. localise the base model's residual, 4. name
     let initial_resid = fit::residual(&s, &base_fit);
     let rms_initial = bins.rms_1s(&initial_resid);
@@ -246,6 +344,18 @@ pub fn analyse(
         samples: s.len(),
         duration_s: s.duration(),
         free_base_terms: free.iter().map(|t| t.label()).collect(),
+        base_coefficients: free
+            .iter()
+            .filter_map(|t| {
+                fin.index(t).map(|k| report::Coefficient {
+                    term: t.label(),
+                    coefficient: fin.beta[k],
+                    std_error: fin.se(k),
+                    unit: t.unit().into(),
+                })
+            })
+            .collect(),
+        truth_from: derived.map(|d| serde_json::to_value(d).unwrap_or_default()),
     };
     let pd = PlotData { initial: bins.means_1s(&initial_resid), fin: bins.means_1s(&named.resid), finds: plot_finds };
     Ok(GapResult { report, model, files: vec![], plots: Some(pd), elapsed_s: start.elapsed().as_secs_f64() })
@@ -279,7 +389,7 @@ pub fn standard_errors(
     tau: f64,
     against: Against,
 ) -> Result<Vec<f64>, String> {
-    let meas: Vec<MeasRow> = truth.iter().map(|t| MeasRow { t: t.t, gyro: t.rate, temp: t.temp }).collect();
+    let meas: Vec<MeasRow> = truth.iter().map(|t| MeasRow { t: t.t, gyro: t.rate, acc: t.f, temp: t.temp }).collect();
     let has_temp = truth.iter().all(|t| t.temp.is_finite());
     let s = read::join(&meas, truth, has_temp, &base.gyro)?;
     let noise = NoiseModel::new(&s, base.noise.gyro_white, base.noise.gyro_bias_walk, profile.gyro_lsb);
@@ -324,87 +434,4 @@ pub fn standard_errors(
         }
     }
     Ok(out)
-}
-
-/// `gyrocomp gap` arguments.
-#[derive(clap::Args, Debug)]
-pub struct GapArgs {
-    /// Measured data (required): a `candump -l` log in the ADIS contract
-    /// (decoded with --profile; times from its first sample, which is the
-    /// truth's first row) or a CSV with the header t,gx,gy,gz,ax,ay,az,mx,my,mz,temp
-    /// (s, deg/s, g, gauss, deg C).
-    #[arg(long, value_name = "FILE")]
-    pub measured: PathBuf,
-    /// Truth (required): t,roll,pitch,yaw,p,q,r,fx,fy,fz[,temp] as `gyrocomp simulate`
-    /// writes it (s since power-on, deg, deg/s, g, deg C). Without temp the measured
-    /// temperature is used; with it, the two must agree within 1 deg C RMS.
-    #[arg(long, value_name = "FILE")]
-    pub truth: PathBuf,
-    /// Base sensor model (required; sensor.toml shape): [gyro] effects with their
-    /// tables are fixed, an effect listed without its table is fitted. Its [noise]
-    /// is the noise model significance is judged with: gyro_white (deg/s/sqrt(Hz),
-    /// default 0.0135) and gyro_bias_walk (deg/s/sqrt(s), default 0.0002).
-    #[arg(long, value_name = "BASE.toml")]
-    pub model: PathBuf,
-    /// Output directory (required; created if missing): report.json, report.md,
-    /// model.toml, residual.svg, finding_N_<effect>_<axis>.svg. Files of those names
-    /// are replaced atomically; an input is never overwritten.
-    #[arg(long, value_name = "DIR")]
-    pub out: PathBuf,
-    /// Part profile: adis16448, adis16405 or adis16465-1. Decodes the log and gives
-    /// the gyro LSB (deg/s) whose quantisation noise (LSB^2/12) is part of the noise model.
-    #[arg(long, value_name = "NAME", default_value = "adis16448")]
-    pub profile: String,
-}
-
-/// The `gap` subcommand.
-pub fn cli(a: &GapArgs) -> Result<(), String> {
-    let o = GapOptions {
-        measured: a.measured.clone(),
-        truth: a.truth.clone(),
-        model: a.model.clone(),
-        out: a.out.clone(),
-        profile: a.profile.clone(),
-        plots: true,
-    };
-    let r = run(&o)?;
-    let rep = &r.report;
-    let nm = &rep.noise_model;
-    println!("gap: {} samples, {:.1} s of data, {:.2} s", rep.samples, rep.duration_s, r.elapsed_s);
-    println!(
-        "noise model: white {:.4} deg/s per sample, bias random walk {:.1e} deg/s/sqrt(s); significant when |t| >= {}",
-        nm.sigma, nm.bias_walk, rep.t_min
-    );
-    println!("residual RMS (1-s means) base model [{}] deg/s, noise floor {:.5} deg/s", report::fmt3(&rep.rms_initial), rep.noise_floor_1s);
-    for f in &rep.findings {
-        println!(
-            "found {}: {:.4e} +- {:.1e} {} (t = {:.1}); RMS [{}] -> [{}]",
-            finding_title(f),
-            f.coefficient,
-            f.std_error,
-            if f.unit == "1" { "(dimensionless)" } else { &f.unit },
-            f.t_stat,
-            report::fmt3(&f.rms_before),
-            report::fmt3(&f.rms_after)
-        );
-    }
-    for w in &rep.withdrawn {
-        println!("withdrawn {}: t = {:.1} once {} was added", w.term, w.t_stat, w.after);
-    }
-    for a in &rep.ambiguous {
-        println!("{}", a.reason);
-    }
-    for u in &rep.unassigned {
-        println!("not separable with this data: {u}");
-    }
-    for x in &rep.rejected {
-        println!("{x}");
-    }
-    if rep.clean {
-        println!("clean: nothing missing");
-    }
-    for p in &r.files {
-        println!("wrote {}", p.display());
-    }
-    Ok(())
 }

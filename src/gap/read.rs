@@ -16,6 +16,8 @@ use std::path::Path;
 pub struct MeasRow {
     pub t: f64,
     pub gyro: [f64; 3],
+    /// Specific force, g (NaN where the source has none).
+    pub acc: [f64; 3],
     pub temp: f64,
 }
 
@@ -26,6 +28,10 @@ pub struct TruthIn {
     pub rate: [f64; 3],
     pub f: [f64; 3],
     pub temp: f64,
+    /// The rate's derivative when the source gives it (a measured reference:
+    /// the derivative of the smoothed rate); None: the backward difference
+    /// the simulator forms, deg/s^2.
+    pub wd: Option<[f64; 3]>,
 }
 
 /// Read measured data: a candump log (ADIS contract, `profile`) or the CSV.
@@ -34,7 +40,9 @@ pub struct TruthIn {
 /// they start further from the truth's start than half its length (epoch
 /// seconds, say): then they too are taken relative to their first row.
 pub fn read_measured(path: &Path, profile: &Profile) -> Result<Vec<MeasRow>, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let mut rd = crate::import::open_text(path)?;
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut rd, &mut bytes).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
     let first = bytes.split(|b| *b == b'\n').map(|l| l.trim_ascii()).find(|l| !l.is_empty());
     match first {
         None => Err(format!("{}: empty file", path.display())),
@@ -62,11 +70,53 @@ fn parse_row(l: &str, n: usize, path: &Path, no: usize) -> Result<Vec<f64>, Stri
 }
 
 const MEAS_HEADER: &str = "t,gx,gy,gz,ax,ay,az,mx,my,mz,temp";
+const MEAS_NAMES: [&str; 11] = ["t", "gx", "gy", "gz", "ax", "ay", "az", "mx", "my", "mz", "temp"];
+
+/// Physical range of a measured CSV column (a MEMS IMU's with a wide
+/// margin): |gyro| <= 5000 deg/s, |specific force| <= 200 g, |field| <= 10
+/// gauss, temperature -60..150 deg C, time 0..1e10 s.
+fn meas_range(col: usize) -> (f64, f64) {
+    match col {
+        0 => (0.0, 1e10),
+        1..=3 => (-5000.0, 5000.0),
+        4..=6 => (-200.0, 200.0),
+        7..=9 => (-10.0, 10.0),
+        _ => (-60.0, 150.0),
+    }
+}
+
+/// One measured CSV row: t and the gyro required; accelerometer,
+/// magnetometer and temperature may be empty (NaN: no such channel).
+fn parse_meas_row(l: &str, path: &Path, no: usize) -> Result<[f64; 11], String> {
+    let v: Vec<&str> = l.split(',').collect();
+    if v.len() != 11 {
+        return Err(format!("{}:{no}: want 11 columns ({MEAS_HEADER}), got {}", path.display(), v.len()));
+    }
+    let mut out = [f64::NAN; 11];
+    for (col, s) in v.iter().enumerate() {
+        let s = s.trim();
+        let name = MEAS_NAMES[col];
+        if s.is_empty() {
+            if col <= 3 {
+                return Err(format!("{}:{no}: column {name}: empty (t and the gyro are required)", path.display()));
+            }
+            continue;
+        }
+        let x: f64 = s.parse().map_err(|_| format!("{}:{no}: column {name}: bad number {s:?}", path.display()))?;
+        let (lo, hi) = meas_range(col);
+        if !(lo..=hi).contains(&x) {
+            return Err(format!("{}:{no}: column {name}: {s} is outside {lo}..{hi}", path.display()));
+        }
+        out[col] = x;
+    }
+    Ok(out)
+}
 
 fn read_meas_csv(path: &Path, bytes: &[u8]) -> Result<Vec<MeasRow>, String> {
     let text = std::str::from_utf8(bytes).map_err(|_| format!("{}: not UTF-8 text", path.display()))?;
     let mut out = Vec::new();
     let mut header = false;
+    let mut prev: Option<[f64; 11]> = None;
     for (i, l) in text.lines().enumerate() {
         let no = i + 1;
         if l.trim().is_empty() {
@@ -80,13 +130,18 @@ fn read_meas_csv(path: &Path, bytes: &[u8]) -> Result<Vec<MeasRow>, String> {
             header = true;
             continue;
         }
-        let v = parse_row(l, 11, path, no)?;
+        let v = parse_meas_row(l, path, no)?;
+        // a row repeated field for field is one sample logged twice (the FIRM files): kept once
+        if prev.is_some_and(|p: [f64; 11]| p.iter().zip(&v).all(|(a, b)| a.to_bits() == b.to_bits())) {
+            continue;
+        }
+        prev = Some(v);
         if let Some(p) = out.last().map(|r: &MeasRow| r.t) {
             if v[0] <= p {
                 return Err(format!("{}:{no}: time {} is not after the previous row's {p}", path.display(), v[0]));
             }
         }
-        out.push(MeasRow { t: v[0], gyro: [v[1], v[2], v[3]], temp: v[10] });
+        out.push(MeasRow { t: v[0], gyro: [v[1], v[2], v[3]], acc: [v[4], v[5], v[6]], temp: v[10] });
     }
     if out.is_empty() {
         return Err(format!("{}: no data rows", path.display()));
@@ -104,7 +159,7 @@ fn read_meas_log(path: &Path, bytes: &[u8], profile: &Profile) -> Result<Vec<Mea
         }
         let t0 = *t_first.get_or_insert(s.t_us);
         if s.t_us >= t0 {
-            out.push(MeasRow { t: (s.t_us - t0) as f64 * 1e-6, gyro: s.gyro, temp: s.temp });
+            out.push(MeasRow { t: (s.t_us - t0) as f64 * 1e-6, gyro: s.gyro, acc: s.accel, temp: s.temp });
         }
     })
     .map_err(|(line, e)| format!("{}: read error after line {line}: {e}", path.display()))?;
@@ -148,7 +203,13 @@ pub fn read_truth(path: &Path) -> Result<(Vec<TruthIn>, bool), String> {
                 return Err(format!("{}:{no}: time {} is not after the previous row's {}", path.display(), v[0], p.t));
             }
         }
-        out.push(TruthIn { t: v[0], rate: [v[4], v[5], v[6]], f: [v[7], v[8], v[9]], temp: if has_temp { v[10] } else { f64::NAN } });
+        out.push(TruthIn {
+            t: v[0],
+            rate: [v[4], v[5], v[6]],
+            f: [v[7], v[8], v[9]],
+            temp: if has_temp { v[10] } else { f64::NAN },
+            wd: None,
+        });
     }
     if out.len() < 2 {
         return Err(format!("{}: fewer than 2 data rows", path.display()));
@@ -239,19 +300,42 @@ impl Samples {
     }
 }
 
+/// The median time step of the truth, s.
+fn median_step(truth: &[TruthIn]) -> f64 {
+    let mut d: Vec<f64> = truth.windows(2).map(|w| w[1].t - w[0].t).collect();
+    d.sort_by(|a, b| a.total_cmp(b));
+    d[d.len() / 2]
+}
+
+/// The time the samples `t` cover: their span less the steps longer than
+/// max(1 s, 10 median steps `dt`) (a reference lost, bursts of a static
+/// recording); the span itself when there is no such step.
+fn covered(t: &[f64], dt: f64) -> f64 {
+    let jump = (10.0 * dt).max(1.0);
+    let gaps: f64 = t.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > jump).sum();
+    (t[t.len() - 1] - t[0]) - gaps
+}
+
 /// Join measured and truth on time; evaluate the fixed part of the base model.
 pub fn join(meas: &[MeasRow], truth: &[TruthIn], truth_has_temp: bool, base: &GyroModel) -> Result<Samples, String> {
     if truth.len() < 2 {
         return Err("truth: fewer than 2 rows".into());
     }
     let t0 = truth[0].t;
-    let dt = (truth[truth.len() - 1].t - t0) / (truth.len() - 1) as f64;
+    let dt = median_step(truth);
     if dt.is_nan() || dt <= 0.0 {
         return Err("truth: time does not advance".into());
     }
-    // rate derivative as the simulator forms it (backward difference)
+    // rate derivative as the simulator forms it (backward difference), or the source's own
     let mut wd = vec![[0.0; 3]; truth.len()];
-    for (k, w) in wd.iter_mut().enumerate().skip(1) {
+    for (k, w) in wd.iter_mut().enumerate() {
+        if let Some(d) = truth[k].wd {
+            *w = d;
+            continue;
+        }
+        if k == 0 {
+            continue;
+        }
         let h = truth[k].t - truth[k - 1].t;
         for (a, x) in w.iter_mut().enumerate() {
             *x = (truth[k].rate[a] - truth[k - 1].rate[a]) / h;
@@ -263,11 +347,20 @@ pub fn join(meas: &[MeasRow], truth: &[TruthIn], truth_has_temp: bool, base: &Gy
     let mut pairs: Vec<(&MeasRow, usize)> = Vec::with_capacity(meas.len());
     for m in meas {
         let t = if rel { m.t - mt0 + t0 } else { m.t };
-        let k = ((t - t0) / dt).round();
-        if k < 0.0 || k >= truth.len() as f64 {
-            continue;
-        }
-        let k = k as usize;
+        // the nearest truth row (a truth with gaps, e.g. a reference's valid stretches, too)
+        let i = truth.partition_point(|r| r.t < t);
+        let k = match (i.checked_sub(1), (i < truth.len()).then_some(i)) {
+            (Some(a), Some(b)) => {
+                if t - truth[a].t <= truth[b].t - t {
+                    a
+                } else {
+                    b
+                }
+            }
+            (Some(a), None) => a,
+            (None, Some(b)) => b,
+            (None, None) => continue,
+        };
         if (truth[k].t - t).abs() <= 0.5 * dt && pairs.last().is_none_or(|p| p.1 < k) {
             pairs.push((m, k));
         }
@@ -349,7 +442,7 @@ pub fn join(meas: &[MeasRow], truth: &[TruthIn], truth_has_temp: bool, base: &Gy
         y: v3(),
         meas_temp: Vec::with_capacity(n),
         truth_temp: truth_has_temp,
-        rate_hz: if span > 0.0 { (n - 1) as f64 / span } else { 1.0 / dt },
+        rate_hz: if span > 0.0 { (n - 1) as f64 / covered(&pairs.iter().map(tt).collect::<Vec<_>>(), dt) } else { 1.0 / dt },
         t0_lin: base.thermal_linear.as_ref().map(|c| c.t0).or(base.thermal_quadratic.as_ref().map(|c| c.t0)).unwrap_or(25.0),
         t0_quad: 25.0,
     };

@@ -77,6 +77,20 @@ pub struct Report {
     pub samples: usize,
     pub duration_s: f64,
     pub free_base_terms: Vec<String>,
+    /// The base model's free coefficients in the final fit (e.g. the turn-on bias), with their standard errors.
+    pub base_coefficients: Vec<Coefficient>,
+    /// How the truth was derived from a measured reference or a still unit (`gap --reference` / `--static`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truth_from: Option<serde_json::Value>,
+}
+
+/// A fitted coefficient.
+#[derive(Clone, Debug, Serialize)]
+pub struct Coefficient {
+    pub term: String,
+    pub coefficient: f64,
+    pub std_error: f64,
+    pub unit: String,
 }
 
 /// What the plots show.
@@ -200,6 +214,9 @@ pub fn render_md(r: &Report, o: &GapOptions) -> String {
         r.samples,
         r.duration_s
     );
+    if let Some(v) = &r.truth_from {
+        s += &super::refdata::render_md(v);
+    }
     s += &format!(
         "Noise model: white {:.4} deg/s per sample (model {:.4}, data [{:.4}, {:.4}, {:.4}]), bias random walk {:.2e} deg/s/sqrt(s) \
          (whitening filter memory {:.0} s). Every coefficient is judged by its own t statistic at the full rate with this noise \

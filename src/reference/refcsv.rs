@@ -51,6 +51,15 @@ fn number(s: &str, name: &str, path: &str, no: u64) -> Result<f64, String> {
     }
 }
 
+/// An Euler angle within +-`max` deg (roll and yaw +-360, pitch +-90).
+fn angle(s: &str, name: &str, max: f64, path: &str, no: u64) -> Result<f64, String> {
+    let v = number(s, name, path, no)?;
+    if v.abs() > max + 1e-9 {
+        return Err(format!("{path} line {no}, column {name}: {v} deg is outside -{max}..{max}"));
+    }
+    Ok(v)
+}
+
 /// Read a reference CSV.
 pub fn read_reference(path: &Path) -> Result<Reference, String> {
     let p = path.display().to_string();
@@ -106,7 +115,7 @@ pub fn parse_reference(text: &str, p: &str) -> Result<Reference, String> {
         let valid = if col[4].is_some() { flag(get(4), "valid", p, no)? } else { true };
         let rest = if col[5].is_some() { flag(get(5), "rest", p, no)? } else { false };
         let att = if valid {
-            Some([number(get(1), "roll", p, no)?, number(get(2), "pitch", p, no)?, number(get(3), "yaw", p, no)?])
+            Some([angle(get(1), "roll", 360.0, p, no)?, angle(get(2), "pitch", 90.0, p, no)?, angle(get(3), "yaw", 360.0, p, no)?])
         } else {
             None
         };
