@@ -50,7 +50,8 @@ def weed(tmp_path_factory):
     ports = {k: free_port() for k in ("master", "volume", "filer", "s3")}
     cmd = [exe, "server", f"-dir={d}", "-ip=127.0.0.1", "-ip.bind=127.0.0.1", "-s3",
            f"-master.port={ports['master']}", f"-volume.port={ports['volume']}", f"-filer.port={ports['filer']}",
-           f"-s3.port={ports['s3']}", "-s3.port.iceberg=0", "-s3.port.lance=0", "-master.volumeSizeLimitMB=512"]
+           f"-s3.port={ports['s3']}", "-s3.port.iceberg=0", "-s3.port.lance=0", "-master.volumeSizeLimitMB=512",
+           "-volume.max=64"]
     log = open(d / "weed.log", "wb")
     proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{ports['s3']}"
@@ -70,11 +71,8 @@ def weed(tmp_path_factory):
             time.sleep(0.3)
     print(f"SeaweedFS up in {time.time() - t0:.1f} s at {url}")
     yield url
-    proc.terminate()
-    try:
-        proc.wait(10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
+    proc.kill()  # SIGTERM takes it 20 s and more; its directory is a temporary one
+    proc.wait()
 
 
 @pytest.fixture(scope="session")
@@ -113,11 +111,12 @@ def dask_run(fleet, weed):
     """The job on a Dask LocalCluster (2 workers on 127.0.0.1), one worker
     SIGKILLed once 30 logs are done. Returns (result, killed pid, stderr of
     the progress bar)."""
-    from distributed import Client, LocalCluster
+    from distributed import Client
+
+    from gyrocomp.fleet.engines import local_dask_cluster
 
     s3 = client(weed)
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None, worker_dashboard_address=None)
+    cluster = local_dask_cluster(2)
     dc = Client(cluster)
     pids = dc.run(os.getpid)
     box = {}
@@ -375,3 +374,35 @@ def test_trend_and_robust_z():
     assert np.isnan(trend_fit(d[:2], d[:2])["drift"])
     z = robust_z([1.0, 1.1, 0.9, 1.05, 0.95, 5.0])
     assert z[-1] > 3.5 and np.all(np.abs(z[:-1]) < 3.5)
+
+
+def test_prefetch_reader_counts_hands_on_errors_and_stops():
+    from gyrocomp.fleet.core import PrefetchReader
+
+    data = bytes(range(256)) * 5000
+    r = PrefetchReader(io.BytesIO(data), chunk=4096, depth=2)
+    got = b"".join(iter(lambda: r.read(1000), b""))
+    assert got == data and r.n == len(data)
+
+    class Broken(io.RawIOBase):
+        def __init__(self):
+            self.left = 3
+
+        def read(self, n=-1):
+            if self.left == 0:
+                raise ConnectionResetError("peer went away")
+            self.left -= 1
+            return b"x" * n
+
+    r = PrefetchReader(Broken(), chunk=10, depth=1)
+    with pytest.raises(ConnectionResetError, match="peer went away"):
+        while r.read(7):
+            pass
+    assert r.n == 30
+    # closed early: the read-ahead thread ends (no thread left blocked on a full queue)
+    r = PrefetchReader(io.BytesIO(data), chunk=100, depth=1)
+    assert r.read(10) == data[:10]
+    t0 = time.time()
+    r.close()
+    assert time.time() - t0 < 2
+    assert not [t for t in threading.enumerate() if t.name == "gyrocomp-fleet-prefetch"]

@@ -13,7 +13,9 @@ import dataclasses
 import datetime as dt
 import hashlib
 import io
+import queue
 import re
+import threading
 import traceback
 import urllib.parse
 from typing import IO, Any, Dict, List, Optional, Tuple
@@ -79,21 +81,62 @@ def config_sha(config_text: Optional[str]) -> str:
     return hashlib.sha256((config_text or "").encode()).hexdigest()[:16]
 
 
-class CountingReader(io.RawIOBase):
-    """A binary stream that counts the bytes read through it (to tell a
-    truncated transfer from a complete one)."""
+class PrefetchReader(io.RawIOBase):
+    """A binary stream read ahead by a thread: `depth` chunks of `chunk`
+    bytes at most (memory bounded), so the download overlaps the replay.
+    Counts the bytes (to tell a truncated transfer from a complete one);
+    an error of the download is raised by `read`."""
 
-    def __init__(self, raw: IO[bytes]):
-        self.raw = raw
+    def __init__(self, raw: IO[bytes], chunk: int = 1 << 20, depth: int = 4):
         self.n = 0
+        self._q: "queue.Queue[Any]" = queue.Queue(depth)
+        self._buf = memoryview(b"")
+        self._eof = False
+        self._stop = threading.Event()
+
+        def pump() -> None:
+            try:
+                while not self._stop.is_set():
+                    b = raw.read(chunk)
+                    self._q.put(b)
+                    if not b:
+                        return
+                self._q.put(b"")  # stopped: the end for close()
+            except BaseException as e:  # handed to the reader
+                self._q.put(e)
+
+        threading.Thread(target=pump, name="gyrocomp-fleet-prefetch", daemon=True).start()
 
     def readable(self) -> bool:
         return True
 
     def read(self, n: int = -1) -> bytes:
-        b = self.raw.read(n)
+        if not self._buf and not self._eof:
+            item = self._q.get()
+            if isinstance(item, BaseException):
+                self._eof = True
+                raise item
+            if not item:
+                self._eof = True
+            self._buf = memoryview(item)
+        if n < 0:
+            n = len(self._buf)
+        b = bytes(self._buf[:n])
+        self._buf = self._buf[n:]
         self.n += len(b)
         return b
+
+    def close(self) -> None:
+        self._stop.set()
+        while not self._eof:  # let the pump finish its put and see the stop
+            try:
+                item = self._q.get(timeout=5)
+            except queue.Empty:
+                break
+            if not item or isinstance(item, BaseException):
+                break
+        self._eof = True
+        super().close()
 
 
 # ------------------------------------------------------------------ schemas
@@ -244,8 +287,11 @@ def run_task(task: Task) -> Tuple[str, str, Optional[str]]:
         obj = s3.get_object(Bucket=task.bucket, Key=task.key)
         if obj.get("ETag", "").strip('"') != task.etag:
             raise TransientError(f"{task.key}: changed since it was listed (ETag {obj.get('ETag')}, listed {task.etag})")
-        body = CountingReader(obj["Body"])
-        rec = process_log(body, task.key, name, task.etag, task.size, task.config_text)
+        body = PrefetchReader(obj["Body"])
+        try:
+            rec = process_log(body, task.key, name, task.etag, task.size, task.config_text)
+        finally:
+            body.close()
         if body.n != task.size:
             raise TransientError(f"{task.key}: truncated transfer: read {body.n} of {task.size} bytes")
         data = parquet_bytes(pa.Table.from_pylist([rec], schema=PER_LOG))

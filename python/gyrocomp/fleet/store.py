@@ -27,7 +27,9 @@ def client(endpoint_url: Optional[str] = None) -> Any:
     import boto3
     import botocore.config
 
-    cfg = botocore.config.Config(retries={"max_attempts": 5, "mode": "standard"}, s3={"addressing_style": "path"})
+    # the logs' integrity is the ETag's and the byte count's (core.run_task): no CRC per response
+    cfg = botocore.config.Config(retries={"max_attempts": 5, "mode": "standard"}, s3={"addressing_style": "path"},
+                                 response_checksum_validation="when_required")
     return boto3.session.Session().client(
         "s3", endpoint_url=endpoint_url or os.environ.get("AWS_ENDPOINT_URL") or None,
         region_name=os.environ.get("AWS_DEFAULT_REGION", "us-east-1"), config=cfg)
