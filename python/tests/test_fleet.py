@@ -258,6 +258,49 @@ def test_spark_gives_the_same_tables(dask_run, fleet, weed):
     assert not differ, f"tables differ between dask and spark: {differ[:5]}"
 
 
+def _die_on_boom(task):
+    """run_task, except that a log named boom kills its worker process."""
+    from gyrocomp.fleet import run_task
+
+    if "boom" in task.key:
+        os._exit(3)
+    return run_task(task)
+
+
+def test_a_log_that_kills_its_workers_is_an_error_row(weed):
+    """A task whose worker dies every time (a log that crashes the process)
+    ends as KilledWorker after the allowed failures: the driver writes its
+    error row, a transient one (the next run tries the log again), and the
+    map goes on."""
+    import dask
+    from distributed import Client
+
+    from gyrocomp.fleet import Task
+    from gyrocomp.fleet.core import error_object
+    from gyrocomp.fleet.engines import local_dask_cluster, map_dask
+
+    s3 = client(weed)
+    task = Task(BUCKET, "boom/unit-b/2026-11-01.log", "unit-b/2026-11-01.log", "e1", 2, BUCKET, "out-boom/", None, weed)
+
+    class Bar:
+        n = 0
+
+        def update(self, k):
+            self.n += k
+
+    bar = Bar()
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+        cluster = local_dask_cluster(1)
+        with Client(cluster) as dc:
+            res = map_dask(_die_on_boom, [task], dc, bar)
+        cluster.close()
+    assert bar.n == 1
+    assert res[0][1] == "error" and "KilledWorker" in res[0][2] and res[0][2].startswith(task.key)
+    row = _read(s3.get_object(Bucket=BUCKET, Key=error_object(task, False))["Body"].read()).to_pylist()[0]
+    assert row["key"] == task.key and "KilledWorker" in row["error"]
+    assert error_object(task, False).endswith(".retry.parquet")
+
+
 def test_bad_config_fails_before_any_task(weed):
     with pytest.raises(ValueError, match="config"):
         run_job(f"s3://{BUCKET}/logs/", f"s3://{BUCKET}/out-bad/", config="[ekf]\nno_such_key = 1\n",

@@ -107,12 +107,15 @@ def map_spark(fn: Callable[[Task], Result], tasks: Sequence[Task], spark: Any, b
 
 
 def _driver_error(task: Task, msg: str) -> Result:
-    """Write a failed task's error row from the driver (the worker could not)."""
+    """Write a failed task's error row from the driver (the worker could not).
+    A transient one (`.retry.parquet`): the engine cannot tell the log that
+    killed its workers from another one that was on the same worker when it
+    died, so the next run tries the log again."""
     import pyarrow as pa
 
     from .core import ERRORS, error_object, error_record, parquet_bytes
     from .store import client
 
     data = parquet_bytes(pa.Table.from_pylist([error_record(task, msg)], schema=ERRORS))
-    client(task.endpoint_url).put_object(Bucket=task.out_bucket, Key=error_object(task, True), Body=data)
+    client(task.endpoint_url).put_object(Bucket=task.out_bucket, Key=error_object(task, False), Body=data)
     return task.key, "error", msg
