@@ -9,7 +9,6 @@ from __future__ import annotations
 import concurrent.futures as cf
 import io
 import os
-import pathlib
 import shutil
 import signal
 import subprocess
@@ -299,6 +298,30 @@ def test_a_log_that_kills_its_workers_is_an_error_row(weed):
     row = _read(s3.get_object(Bucket=BUCKET, Key=error_object(task, False))["Body"].read()).to_pylist()[0]
     assert row["key"] == task.key and "KilledWorker" in row["error"]
     assert error_object(task, False).endswith(".retry.parquet")
+
+
+def test_reduce_keeps_one_error_row_per_log_and_drops_stale_objects(weed):
+    """reduce over hand-written objects: a log with a transient and then a
+    final error row counts once (the final one, the transient deleted); a
+    result of an older ETag of a log is deleted."""
+    import pyarrow as pa
+
+    from gyrocomp.fleet import Task, reduce
+    from gyrocomp.fleet.core import ERRORS, error_object, error_record, parquet_bytes
+
+    s3 = client(weed)
+    t = Task(BUCKET, "r/unit-r/2026-11-01.log", "unit-r/2026-11-01.log", "new", 5, BUCKET, "out-reduce/", None, weed)
+    for final, msg in ((False, "r/unit-r/2026-11-01.log: truncated transfer"), (True, "r/unit-r/2026-11-01.log: no samples")):
+        s3.put_object(Bucket=BUCKET, Key=error_object(t, final),
+                      Body=parquet_bytes(pa.Table.from_pylist([error_record(t, msg)], schema=ERRORS)))
+    stale = "out-reduce/per_log/unit=unit-r/2026-11-01.old.parquet"
+    s3.put_object(Bucket=BUCKET, Key=stale, Body=b"not read: deleted")
+    res = reduce([t], f"s3://{BUCKET}/out-reduce/", weed)
+    assert res.failed == 1 and res.units == 0
+    rows = _read(_tables(s3, "out-reduce/fleet/")["errors.parquet"]).to_pylist()
+    assert [r["error"] for r in rows] == ["r/unit-r/2026-11-01.log: no samples"]
+    left = {o["Key"] for o in list_objects(s3, BUCKET, "out-reduce/")}
+    assert stale not in left and error_object(t, False) not in left and error_object(t, True) in left
 
 
 def test_bad_config_fails_before_any_task(weed):

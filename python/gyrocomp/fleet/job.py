@@ -29,8 +29,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from . import fit
-from .core import (AXES, PER_LOG, LogError, LogName, Task, config_sha, error_object, parquet_bytes, parse_key,
-                   result_object, standstill_frame, unit_dir)
+from .core import (AXES, ERRORS, PER_LOG, LogError, LogName, Task, config_sha, error_object, parquet_bytes,
+                   parse_key, result_object, standstill_frame, unit_dir)
 from .engines import _bar, local_dask_cluster, map_dask, map_spark, spark_session
 from .store import client, list_objects, parse_url
 
@@ -191,8 +191,11 @@ def reduce(tasks: Sequence[Task], out_url: str, endpoint_url: Optional[str], min
     have_err = sorted(o["Key"] for o in list_objects(s3, out_bucket, out_prefix + "errors/"))
     res_keys = [k for k in have_res if k in want_res]
     res_set = set(res_keys)
-    # a log with a result and a transient error row (a retry that worked): the result counts
-    err_keys = [k for k in have_err if k in want_err and _res_of_err(k, out_prefix) not in res_set]
+    # a log with a result and a transient error row (a retry that worked): the result counts;
+    # with a final and a transient one (a retry that failed for good): the final one
+    have_err_set = set(have_err)
+    err_keys = [k for k in have_err if k in want_err and _res_of_err(k, out_prefix) not in res_set
+                and not (k.endswith(".retry.parquet") and k[: -len(".retry.parquet")] + ".parquet" in have_err_set)]
     want_err = set(err_keys)
     for k in [k for k in have_res if k not in res_set] + [k for k in have_err if k not in want_err]:
         s3.delete_object(Bucket=out_bucket, Key=k)
@@ -203,7 +206,7 @@ def reduce(tasks: Sequence[Task], out_url: str, endpoint_url: Optional[str], min
         u = _unit_of_dir(k[len(out_prefix + "per_log/"):].split("/", 1)[0])
         by_unit.setdefault(u, []).append(tab)
     errs = _read_tables(s3, out_bucket, err_keys)
-    errors = (pa.concat_tables(errs) if errs else pa.Table.from_pylist([], schema=_errors_schema()))
+    errors = (pa.concat_tables(errs) if errs else pa.Table.from_pylist([], schema=ERRORS))
     errors = errors.sort_by([("key", "ascending")])
     _put(s3, out_bucket, out_prefix + "fleet/errors.parquet", errors)
 
@@ -251,12 +254,6 @@ def reduce(tasks: Sequence[Task], out_url: str, endpoint_url: Optional[str], min
     _put(s3, out_bucket, out_prefix + "fleet/outliers.parquet", _table(outliers, OUTLIERS))
     return JobResult(logs=len(tasks), processed=0, skipped=0, failed=errors.num_rows, units=len(units),
                      outliers=len({o["unit"] for o in outliers}), out=out_url)
-
-
-def _errors_schema() -> pa.Schema:
-    from .core import ERRORS
-
-    return ERRORS
 
 
 OUTLIERS = pa.schema([("unit", pa.string()), ("what", pa.string()), ("axis", pa.string()), ("value", pa.float64()),
