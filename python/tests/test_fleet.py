@@ -9,6 +9,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import io
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -243,13 +244,18 @@ def test_rerun_redoes_a_changed_log_and_a_lost_result(dask_run, fleet, weed):
         assert res.processed == 1
 
 
-def test_spark_gives_the_same_tables(dask_run, fleet, weed):
+def test_spark_gives_the_same_tables(dask_run, fleet, weed, capfd):
     pytest.importorskip("pyspark")
     s3 = client(weed)
     t0 = time.time()
     res = run_job(f"s3://{BUCKET}/logs/", f"s3://{BUCKET}/out-spark/", engine="spark", config=FLEET_CONFIG,
-                  master="local[2]", endpoint_url=weed, progress=False)
+                  master="local[2]", endpoint_url=weed)
     print(f"spark job: {time.time() - t0:.1f} s: {res}")
+    err = capfd.readouterr().err
+    assert f"{res.logs}/{res.logs}" in err, f"no progress bar of the logs in: {err[-500:]}"
+    # the bar moved with the stage's tasks, not only at the end
+    seen = {int(m) for m in re.findall(rf"(\d+)/{res.logs}\b", err)}
+    assert any(0 < n < res.logs for n in seen), f"the bar never moved before the end: {sorted(seen)}"
     assert res.processed == res.logs == len(fleet[1]) + len(BAD) and res.failed == len(BAD)
     a, b = _tables(s3, "out-dask/"), _tables(s3, "out-spark/")
     assert sorted(a) == sorted(b)
