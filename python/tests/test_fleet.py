@@ -336,6 +336,23 @@ def test_bad_config_fails_before_any_task(weed):
                 endpoint_url=weed, progress=False)
 
 
+def test_cli_module_runs_the_job(dask_run, fleet, weed, tmp_path):
+    """`python -m gyrocomp.fleet` on the done output: everything skipped, the
+    counts printed; another config on the same --out is refused (exit 1)."""
+    cfg = tmp_path / "fleet.toml"
+    cfg.write_text(FLEET_CONFIG)
+    env = dict(os.environ, AWS_ENDPOINT_URL=weed)
+    p = run([sys.executable, "-m", "gyrocomp.fleet", "--logs", f"s3://{BUCKET}/logs", "--out", f"s3://{BUCKET}/out-dask",
+             "--config", cfg, "--no-progress"], env=env)
+    n = len(fleet[1]) + len(BAD)
+    assert f"logs {n}: processed 0, skipped {n} (results there), failed {len(BAD)}; units {UNITS}" in p.stdout
+    cfg.write_text(FLEET_CONFIG + "\n[ekf]\nbias_walk = 0.0002\n")
+    q = subprocess.run([sys.executable, "-m", "gyrocomp.fleet", "--logs", f"s3://{BUCKET}/logs", "--out",
+                        f"s3://{BUCKET}/out-dask", "--config", str(cfg), "--no-progress"], env=env,
+                       capture_output=True, text=True)
+    assert q.returncode == 1 and "holds results of another config" in q.stderr, q.stderr
+
+
 def test_cli_module_help():
     p = run([sys.executable, "-m", "gyrocomp.fleet", "--help"])
     assert "--logs" in p.stdout and "--engine" in p.stdout
