@@ -149,6 +149,18 @@ pub fn write_csv_row<C: Write>(c: &mut C, e: &Estimate) -> io::Result<()> {
 
 /// Replay a stream through a pipeline into a sink. Returns the summary.
 pub fn run<R: Read, S: Sink>(pipe: &mut Pipeline, input: R, sink: &mut S) -> io::Result<Summary> {
+    run_inspect(pipe, input, sink, |_, _| {})
+}
+
+/// `run`, calling `after(pipeline, sink)` after every frame is pushed: a sink
+/// that wants more of the estimator than the estimate (the bias sigma at a
+/// standstill, for the Python binding's fleet records) reads it there.
+pub fn run_inspect<R: Read, S: Sink, F: FnMut(&Pipeline, &mut S)>(
+    pipe: &mut Pipeline,
+    input: R,
+    sink: &mut S,
+    mut after: F,
+) -> io::Result<Summary> {
     let mut rd = LineReader::new(input);
     let mut sum = Summary::default();
     let want_input = sink.wants_input();
@@ -169,7 +181,8 @@ pub fn run<R: Read, S: Sink>(pipe: &mut Pipeline, input: R, sink: &mut S) -> io:
                 if want_input {
                     sink.input(f.t_us, &raw);
                 }
-                pipe.push(f.t_us, raw, sink)
+                pipe.push(f.t_us, raw, sink);
+                after(pipe, sink);
             }
             Err(e) => sum.bad_line(rd.line_no, e),
         }

@@ -14,6 +14,7 @@ from ._gyrocomp import (
     read_log,
     replay,
     replay_chunks,
+    replay_standstills,
 )
 
 __all__ = [
@@ -26,4 +27,5 @@ __all__ = [
     "read_log",
     "replay",
     "replay_chunks",
+    "replay_standstills",
 ]

@@ -124,6 +124,26 @@ def replay_chunks(log: _Log, config: _Config = None, rows: int = 65536) -> Repla
     columns, without the summary): memory bounded by the chunk whatever the
     log's length. The replay runs in a thread one chunk ahead."""
 
+class StandstillArrays(TypedDict):
+    t_start: _F64  # (K,) s since the first sample
+    t_end: _F64  # (K,) s, the standstill's last sample
+    samples: npt.NDArray[np.uint64]  # (K,)
+    temp: _F64  # (K,) mean temperature, deg C
+    temp_min: _F64  # (K,) deg C
+    temp_max: _F64  # (K,) deg C
+    bias: _F64  # (K, 3) the learned bias at the standstill's last sample, deg/s
+    bias_sigma: _F64  # (K, 3) its 1-sigma, deg/s (NaN in the paper's modes)
+    gyro_mean: _F64  # (K, 3) the mean measured rate (rate + bias, vehicle frame), deg/s
+    gyro_se: _F64  # (K, 3) its standard error (sample scatter / sqrt(n)), deg/s
+
+def replay_standstills(log: _Log, config: _Config = None) -> Dict[str, Any]:
+    """`replay` keeping only what a fleet job needs (memory flat in the
+    log's length): standstills (StandstillArrays: one entry per run of
+    estimates flagged STANDSTILL), samples, temp_min, temp_max (deg C),
+    t_end (s), bias, bias_sigma (3,) at the last sample (deg/s), state (the
+    daemon's state file's text at the end, saved_unix 0; None: nothing
+    learned) and summary (as `replay`'s)."""
+
 def read_log(log: _Log, config: _Config = None) -> Dict[str, Any]:
     """The samples of a candump log as the daemon assembles them: gyr, acc,
     mag (N, 3), temp, t (sample counter time, s), t_frame (frame time, s),
