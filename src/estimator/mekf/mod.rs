@@ -147,9 +147,11 @@ const VERTICAL_BOUND_SIGMA: f64 = 0.5;
 /// A car's body cannot keep rolling or pitching (`fuse_level_rate`): its
 /// rate about the horizontal, averaged over `LEVEL_WINDOW_S`, is zero within
 /// `LEVEL_RATE_SIGMA` (a grade or a suspension's change over the window:
-/// 3 deg in 3 s is a hard braking's dive).
+/// 3 deg in 3 s is a hard braking's dive), on windows turning less than
+/// `LEVEL_TURN_MAX` about the vertical.
 const LEVEL_WINDOW_S: f64 = 3.0;
 const LEVEL_RATE_SIGMA: f64 = 1.0 * D2R;
+const LEVEL_TURN_MAX: f64 = 3.0 * D2R;
 /// A car's roll, per level window, is zero within this (`fuse_level_roll`).
 const LEVEL_ROLL_SIGMA: f64 = 3.0 * D2R;
 

@@ -17,13 +17,9 @@ impl Mekf {
     /// Over a window of `LEVEL_WINDOW_S` the raw gyro's turn about the
     /// horizontal is the bias's, `C̄ b` (`C̄` the attitude averaged over the
     /// window), within `LEVEL_RATE_SIGMA`. This holds under any acceleration
-    /// (the accelerometer is not used). In a turn a tilt error puts part of
-    /// the turn on the horizontal: the row carries that term, so the window
-    /// tells the tilt as well as the bias. (Windows turning faster than 3
-    /// deg/s were left out instead: a car powered on at 14 m/s with a 4
-    /// deg/s z bias looked to be turning on every window, its 2 deg/s pitch
-    /// bias went unread for 9 s and its pitch ran 10 deg off, `smooth
-    /// --power-on-moving` seed 6.) Without it, IMU only on a
+    /// (the accelerometer is not used), and is left out on windows that turn
+    /// about the vertical by more than `LEVEL_TURN_MAX` (a tilt error would
+    /// put part of the turn on the horizontal). Without it, IMU only on a
     /// straight road, nothing but the vehicle constraint at a speed the
     /// filter does not know told the roll and pitch axes' bias: a 2 deg/s
     /// pitch bias ran the comma2k19 car's pitch 7 deg off in 2 s.
@@ -52,18 +48,15 @@ impl Mekf {
         let b = self.core.bias();
         // the mean navigation-frame rate, bias-corrected
         let r: [f64; 3] = std::array::from_fn(|k| (g[k] - (0..3).map(|j| c[k][j] * b[j]).sum::<f64>()) / w);
-        // r is what the filter's attitude makes of the body's rate. With a
-        // tilt error δθ (true C = (I + [δθ×]) Ĉ) the true rate is
-        // r + δθ × r - C̄ δb: in a turn part of r_z lands on the
-        // horizontal. δθ over the window is its mean, δθ + C̄ δb w/2 (the
-        // bias error turns the tilt at -C δb).
-        let rx = [[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]];
+        if r[2].abs() > LEVEL_TURN_MAX {
+            self.aid.set(Aid::LevelRate, AidStatus::NotApplicable(Why::Turning));
+            return;
+        }
         let mut s = AidStatus::NotApplicable(Why::Unobservable);
         for k in 0..2 {
             let mut h = [0.0; N];
             for j in 0..3 {
-                h[TH + j] = -rx[k][j];
-                h[BI + j] = -c[k][j] / w - 0.5 * (0..3).map(|m| rx[k][m] * c[m][j]).sum::<f64>();
+                h[BI + j] = -c[k][j] / w;
             }
             s = s.and_row(self.update(&h, -r[k], LEVEL_RATE_SIGMA * LEVEL_RATE_SIGMA, gain, self.p.gate));
         }

@@ -123,6 +123,8 @@ pub enum Why {
     BiasKnown,
     /// Its window (3 s) is still filling.
     Window,
+    /// Its window turned about the vertical.
+    Turning,
     /// Not with the magnetometer in use.
     HeadingReference,
     /// The state is inside the bound: nothing to say.
@@ -158,6 +160,7 @@ impl Why {
             Why::Vehicle => "a vehicle",
             Why::BiasKnown => "bias known",
             Why::Window => "window filling",
+            Why::Turning => "turning",
             Why::HeadingReference => "heading reference in use",
             Why::WithinBound => "within bound",
             Why::NoSpeed => "no speed",
