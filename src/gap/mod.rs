@@ -355,7 +355,7 @@ pub fn analyse_with(
                 })
             })
             .collect(),
-        truth_from: derived.map(|d| serde_json::to_value(d).unwrap_or_default()),
+        truth_from: derived.cloned(),
     };
     let pd = PlotData { initial: bins.means_1s(&initial_resid), fin: bins.means_1s(&named.resid), finds: plot_finds };
     Ok(GapResult { report, model, files: vec![], plots: Some(pd), elapsed_s: start.elapsed().as_secs_f64() })

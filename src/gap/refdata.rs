@@ -138,14 +138,13 @@ impl Derivation {
 }
 
 /// report.md's paragraph on how the truth was derived.
-pub fn render_md(v: &serde_json::Value) -> String {
-    let Ok(d) = serde_json::from_value::<DerivationView>(v.clone()) else { return String::new() };
+pub fn render_md(d: &Derivation) -> String {
     let mut s = if d.source == "static" {
         format!(
             "Truth of a unit lying still: {} samples at {:.1} Hz (median), in {} stretch(es) between time jumps > {STATIC_JUMP_S} s \
              (one power cycle), zero rotation. Specific force: {}. Temperature: {}.\n\n",
             d.samples,
-            d.input_rate_hz.unwrap_or(f64::NAN),
+            d.input_rate_hz,
             d.stretches.len(),
             d.specific_force,
             d.temperature
@@ -156,11 +155,11 @@ pub fn render_md(v: &serde_json::Value) -> String {
              each side; the measured gyro alike), every {}th sample kept ({:.2} Hz), {} samples in {} stretch(es) where it is valid. \
              Specific force: {}. Temperature: {}.\n\n",
             d.input_samples,
-            d.input_rate_hz.unwrap_or(f64::NAN),
-            d.bandwidth_hz.unwrap_or(f64::NAN),
+            d.input_rate_hz,
+            d.bandwidth_hz,
             d.half_width,
             d.decimation,
-            d.rate_hz.unwrap_or(f64::NAN),
+            d.rate_hz,
             d.samples,
             d.stretches.len(),
             d.specific_force,
@@ -183,35 +182,6 @@ pub fn render_md(v: &serde_json::Value) -> String {
         );
     }
     s
-}
-
-#[derive(serde::Deserialize)]
-struct DerivationView {
-    source: String,
-    bandwidth_hz: Option<f64>,
-    input_rate_hz: Option<f64>,
-    decimation: usize,
-    rate_hz: Option<f64>,
-    half_width: usize,
-    mount: Option<MountView>,
-    specific_force: String,
-    temperature: String,
-    reference_rest_rms: [f64; 3],
-    reference_moving_rms: [f64; 3],
-    reference_white_density: f64,
-    input_samples: usize,
-    samples: usize,
-    stretches: Vec<[f64; 2]>,
-}
-
-#[derive(serde::Deserialize)]
-struct MountView {
-    roll_deg: f64,
-    pitch_deg: f64,
-    angle_deg: f64,
-    rest_from_s: f64,
-    rest_to_s: f64,
-    note: String,
 }
 
 /// Check `--bandwidth`.

@@ -81,7 +81,7 @@ pub struct Report {
     pub base_coefficients: Vec<Coefficient>,
     /// How the truth was derived from a measured reference or a still unit (`gap --reference` / `--static`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub truth_from: Option<serde_json::Value>,
+    pub truth_from: Option<super::refdata::Derivation>,
 }
 
 /// A fitted coefficient.
@@ -214,8 +214,8 @@ pub fn render_md(r: &Report, o: &GapOptions) -> String {
         r.samples,
         r.duration_s
     );
-    if let Some(v) = &r.truth_from {
-        s += &super::refdata::render_md(v);
+    if let Some(d) = &r.truth_from {
+        s += &super::refdata::render_md(d);
     }
     s += &format!(
         "Noise model: white {:.4} deg/s per sample (model {:.4}, data [{:.4}, {:.4}, {:.4}]), bias random walk {:.2e} deg/s/sqrt(s) \
