@@ -257,6 +257,13 @@ impl Pipeline {
         Pipeline::with_speed(cfg, None)
     }
 
+    /// The pipeline `cfg` describes: with the vehicle's speed frames when
+    /// `[speed]` is configured (its DBC read now; a DBC that cannot be read
+    /// is the error).
+    pub fn from_config(cfg: &Config) -> Result<Pipeline, crate::speed::SpeedError> {
+        Ok(Pipeline::with_speed(cfg, crate::speed::load(cfg)?))
+    }
+
     /// A pipeline that also decodes the vehicle's speed frames.
     pub fn with_speed(cfg: &Config, speed: Option<SpeedDecoder>) -> Pipeline {
         let p = cfg.profile();

@@ -461,8 +461,7 @@ pub fn replay_files(cfg: &Config, files: &ReplayFiles<'_>, keep: Option<&mut Vec
         Some(p) => Some(McapSink::new(McapFile::create(p, false, false).map_err(mcap_err(p))?)),
         None => None,
     };
-    let speed = crate::speed::load(cfg).map_err(|e| ReplayError::Refused(format!("config: {e}")))?;
-    let mut pipe = Pipeline::with_speed(cfg, speed);
+    let mut pipe = Pipeline::from_config(cfg).map_err(|e| ReplayError::Refused(format!("config: {e}")))?;
     let mut sink = ReplaySink { log: log.as_mut(), csv: csv.as_mut(), keep, mcap: mcap.as_mut(), err: None };
     let sum = run_threaded(&mut pipe, input, &mut sink).map_err(|source| ReplayError::Read { path: ip, source })?;
     if let Some(e) = sink.err.take() {

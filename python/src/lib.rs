@@ -716,12 +716,9 @@ fn replay<'py>(py: Python<'py>, log: &Bound<'py, PyAny>, config: Option<&Bound<'
     let src = LogSource::of(log)?;
     let name = src.name();
     let input = io::BufReader::with_capacity(CHUNK, src.reader()?);
-    let speed = gyrocomp::speed::load(&cfg).map_err(|e| PyValueError::new_err(format!("config: {e}")))?;
+    let mut pipe = pipeline(&cfg)?;
     let mut cols = ReplayCols::default();
-    let sum = py.allow_threads(|| {
-        let mut pipe = Pipeline::with_speed(&cfg, speed);
-        core_replay::run(&mut pipe, input, &mut cols)
-    });
+    let sum = py.allow_threads(|| core_replay::run(&mut pipe, input, &mut cols));
     let sum = sum.map_err(|e| io_err(&name, e))?;
     let d = cols.into_dict(py)?;
     d.set_item("summary", summary_dict(py, &sum)?)?;
@@ -752,6 +749,11 @@ impl ReplayCols {
         d.set_item("t_us", PyArray1::from_vec(py, self.t_us))?;
         Ok(d)
     }
+}
+
+/// The pipeline `cfg` describes (`Pipeline::from_config`), its error a ValueError.
+fn pipeline(cfg: &Config) -> PyResult<Pipeline> {
+    Pipeline::from_config(cfg).map_err(|e| PyValueError::new_err(format!("config: {e}")))
 }
 
 /// The replay summary as a dict; its "text" is what the CLI prints.
@@ -876,10 +878,9 @@ fn replay_standstills<'py>(py: Python<'py>, log: &Bound<'py, PyAny>, config: Opt
     let src = LogSource::of(log)?;
     let name = src.name();
     let input = io::BufReader::with_capacity(CHUNK, src.reader()?);
-    let speed = gyrocomp::speed::load(&cfg).map_err(|e| PyValueError::new_err(format!("config: {e}")))?;
+    let mut pipe = pipeline(&cfg)?;
     let mut sink = StandstillSink::new();
     let (sum, state, sigma) = py.allow_threads(|| {
-        let mut pipe = Pipeline::with_speed(&cfg, speed);
         let sum = core_replay::run_inspect(&mut pipe, input, &mut sink, |p, s| {
             if s.fresh {
                 s.fresh = false;
@@ -1053,14 +1054,13 @@ fn replay_chunks(log: &Bound<'_, PyAny>, config: Option<&Bound<'_, PyAny>>, rows
     let name = src.name();
     let stop = Arc::new(AtomicBool::new(false));
     let input = io::BufReader::with_capacity(CHUNK, StopReader { inner: src.reader()?, stop: stop.clone() });
-    let speed = gyrocomp::speed::load(&cfg).map_err(|e| PyValueError::new_err(format!("config: {e}")))?;
+    let mut pipe = pipeline(&cfg)?;
     // one chunk in the channel and one being filled: memory bounded by the chunk
     let (tx, rx) = sync_channel(1);
     let mut sink = ChunkSink { cols: ReplayCols::default(), rows, tx: tx.clone(), stop: stop.clone() };
     std::thread::Builder::new()
         .name("gyrocomp-replay".into())
         .spawn(move || {
-            let mut pipe = Pipeline::with_speed(&cfg, speed);
             let res = core_replay::run(&mut pipe, input, &mut sink);
             if sink.cols.len() > 0 {
                 let _ = tx.send(ChunkMsg::Chunk(Box::new(std::mem::take(&mut sink.cols))));

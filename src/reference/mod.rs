@@ -144,8 +144,7 @@ pub fn run_ours_log<R: std::io::Read>(log: R, cfg: &Config, name: &str) -> Resul
             self.1.push(e.mode);
         }
     }
-    let speed = crate::speed::load(cfg).map_err(|e| format!("config: {e}"))?;
-    let mut pipe = crate::pipeline::Pipeline::with_speed(cfg, speed);
+    let mut pipe = crate::pipeline::Pipeline::from_config(cfg).map_err(|e| format!("config: {e}"))?;
     let mut keep = Keep(Vec::new(), Vec::new());
     crate::replay::run(&mut pipe, log, &mut keep).map_err(|e| format!("{name}: {e}"))?;
     let magn = magnetometer_configured(cfg) && pipe.estimator().magnetometer().unwrap_or(true);
