@@ -333,34 +333,17 @@ fn can_cdr(b: &mut Vec<u8>, sec: i32, t_us: u64, f: &RawFrame<'_>) {
     b.extend_from_slice(&f.data[..n]);
 }
 
-/// `[w, x, y, z]` of the FRD body in NED from Z-Y-X Euler angles (deg):
-/// `C_nb = Rz(yaw) Ry(pitch) Rx(roll)`.
-pub fn quat_ned_frd(roll_deg: f64, pitch_deg: f64, yaw_deg: f64) -> [f64; 4] {
-    let (sr, cr) = (roll_deg.to_radians() / 2.0).sin_cos();
-    let (sp, cp) = (pitch_deg.to_radians() / 2.0).sin_cos();
-    let (sy, cy) = (yaw_deg.to_radians() / 2.0).sin_cos();
-    [cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy]
-}
-
-fn qmul(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
-    [
-        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
-    ]
-}
-
 /// `[w, x, y, z]` of the FLU body (`base_link`) in ENU (`world`), REP-103:
 /// `q_enu_flu = q_enu_ned * q_ned_frd * q_frd_flu`, where ENU from NED is a
 /// half turn about (1, 1, 0)/sqrt(2) (swap x and y, negate z) and FRD from
 /// FLU a half turn about x. Normalised, with `w >= 0`.
 pub fn quat_enu_flu(roll_deg: f64, pitch_deg: f64, yaw_deg: f64) -> [f64; 4] {
+    use crate::estimator::quat;
     let h = std::f64::consts::FRAC_1_SQRT_2;
-    let q = qmul(qmul([0.0, h, h, 0.0], quat_ned_frd(roll_deg, pitch_deg, yaw_deg)), [0.0, 1.0, 0.0, 0.0]);
-    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    let s = if q[0] < 0.0 { -1.0 / n } else { 1.0 / n };
-    q.map(|v| v * s)
+    let ned_frd = quat::from_euler(roll_deg.to_radians(), pitch_deg.to_radians(), yaw_deg.to_radians());
+    let mut q = quat::mul(&quat::mul(&[0.0, h, h, 0.0], &ned_frd), &[0.0, 1.0, 0.0, 0.0]);
+    quat::normalise(&mut q);
+    q
 }
 
 /// Topics of one recording.
