@@ -27,7 +27,6 @@ pub mod dbcin;
 pub mod estimator;
 #[cfg(feature = "cli")]
 pub mod evaluate;
-#[cfg(feature = "cli")]
 pub mod gap;
 #[cfg(feature = "cli")]
 pub mod import;
@@ -38,8 +37,12 @@ pub mod peers;
 pub mod pipeline;
 #[cfg(feature = "cli")]
 pub mod reference;
+/// Without `cli`: the reference CSV reader only (`gap` derives a truth from it).
+#[cfg(not(feature = "cli"))]
+pub mod reference {
+    pub mod refcsv;
+}
 pub mod replay;
-#[cfg(feature = "cli")]
 pub mod sim;
 pub mod speed;
 pub mod textfile;
