@@ -7,7 +7,8 @@
 //!
 //! Feature `cli` (default) builds the binary's parts: the daemon, the
 //! offline commands (`align`, `evaluate`, `gap`, `import`, `reference`, `sim`)
-//! and their plots. Without it the library is what the Python package binds.
+//! and their plots. Without it the library is what the Python package binds
+//! (with [`gap`] and the [`sim`] model it needs, but no plots).
 
 pub mod adis;
 #[cfg(feature = "cli")]
