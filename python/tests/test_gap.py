@@ -164,3 +164,19 @@ def test_gap_releases_the_gil(sims):
     assert t1 - t0 >= 0.1, f"the call is too short to tell ({t1 - t0:.3f} s)"
     inside = [s for s in stamps if t0 + 0.015 < s < t1 - 0.015]
     assert len(inside) > 100
+
+
+def test_gap_static_equals_cli(cli, tmp_path):
+    """static=True: a still unit, gzipped bytes and the path alike."""
+    import gzip
+    run([cli, "simulate", "--scenario", "static", "--seed", 1, "--duration", 60, "--out", tmp_path / "st"])
+    (tmp_path / "base.toml").write_text(BASE)
+    log = tmp_path / "st" / "imu.log"
+    run([cli, "gap", "--measured", log, "--static", "--model", tmp_path / "base.toml", "--out", tmp_path / "out"])
+    written = json.loads((tmp_path / "out" / "report.json").read_text())
+    from_path = gyrocomp.gap(log, static=True, model=tmp_path / "base.toml")
+    from_gz = gyrocomp.gap(gzip.compress(log.read_bytes()), static=True, model=BASE.encode())
+    assert from_gz == from_path
+    from_path.pop("model")
+    assert from_path == written
+    assert written["truth_from"]["source"] != "simulated"
