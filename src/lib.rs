@@ -7,7 +7,8 @@
 //!
 //! Feature `cli` (default) builds the binary's parts: the daemon, the
 //! offline commands (`align`, `evaluate`, `gap`, `import`, `reference`, `sim`)
-//! and their plots. Without it the library is what the Python package binds.
+//! and their plots. Without it the library is what the Python package binds
+//! (with [`gap`] and the [`sim`] model it needs, but no plots).
 
 pub mod adis;
 #[cfg(feature = "cli")]
@@ -27,7 +28,6 @@ pub mod dbcin;
 pub mod estimator;
 #[cfg(feature = "cli")]
 pub mod evaluate;
-#[cfg(feature = "cli")]
 pub mod gap;
 #[cfg(feature = "cli")]
 pub mod import;
@@ -38,8 +38,12 @@ pub mod peers;
 pub mod pipeline;
 #[cfg(feature = "cli")]
 pub mod reference;
+/// Without `cli`: the reference CSV reader only (`gap` derives a truth from it).
+#[cfg(not(feature = "cli"))]
+pub mod reference {
+    pub mod refcsv;
+}
 pub mod replay;
-#[cfg(feature = "cli")]
 pub mod sim;
 pub mod speed;
 pub mod textfile;

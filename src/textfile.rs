@@ -19,6 +19,22 @@ pub fn from_bytes(bytes: Vec<u8>) -> io::Result<String> {
     })
 }
 
+/// [`from_bytes`] of borrowed bytes.
+pub fn str_of(bytes: &[u8]) -> io::Result<&str> {
+    std::str::from_utf8(bytes).map_err(|e| io::Error::new(io::ErrorKind::InvalidData, not_text(bytes, e.valid_up_to())))
+}
+
+/// The bytes of a file read whole, gunzipped when they start with gzip's
+/// magic number (0x1f 0x8b), as they are otherwise.
+pub fn gunzip(bytes: &[u8]) -> io::Result<std::borrow::Cow<'_, [u8]>> {
+    if !bytes.starts_with(&[0x1f, 0x8b]) {
+        return Ok(std::borrow::Cow::Borrowed(bytes));
+    }
+    let mut out = Vec::new();
+    io::Read::read_to_end(&mut flate2::read::MultiGzDecoder::new(bytes), &mut out)?;
+    Ok(std::borrow::Cow::Owned(out))
+}
+
 /// "not UTF-8 text: line L, column C (byte 0xNN)" for `bytes` invalid at `at`.
 pub fn not_text(bytes: &[u8], at: usize) -> String {
     let before = &bytes[..at];

@@ -1,4 +1,4 @@
-"""gyrocomp from Python: the estimator, replay and calibrate of the Rust crate.
+"""gyrocomp from Python: the estimator, replay, calibrate and gap of the Rust crate.
 
 Units are the project's CSVs': gyro deg/s, specific force g, magnetic field
 gauss, temperature deg C, time s, angles deg. See docs/python.md.
@@ -11,6 +11,7 @@ from ._gyrocomp import (
     Estimator,
     __version__,
     calibrate,
+    gap,
     read_log,
     replay,
     replay_chunks,
@@ -24,6 +25,7 @@ __all__ = [
     "Estimator",
     "__version__",
     "calibrate",
+    "gap",
     "read_log",
     "replay",
     "replay_chunks",

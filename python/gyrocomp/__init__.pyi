@@ -155,3 +155,38 @@ def calibrate(runs: Sequence[_Log], order: int = 1, config: _Config = None) -> D
     p2, p2_ci, rms, white, walk (3,), levels, range, bins_used, warnings,
     runs (a dict each), toml (the [thermal] section), report (the CLI's
     text)."""
+
+_Input = Union[str, bytes, "os.PathLike[str]"]
+
+def gap(
+    measured: Union[_Input, Sequence[_Input]],
+    truth: Optional[_Input] = None,
+    reference: Union[None, _Input, Sequence[_Input]] = None,
+    model: _Config = None,
+    static: bool = False,
+    bandwidth: float = 2.0,
+    profile: str = "adis16448",
+) -> Dict[str, Any]:
+    """`gyrocomp gap`: what a gyro sensor model is missing, with evidence,
+    nothing written. measured: a candump log (ADIS contract, decoded with
+    `profile`) or a CSV t,gx,gy,gz,ax,ay,az,mx,my,mz,temp (s, deg/s, g,
+    gauss, deg C), as a path or bytes (gzip recognised); a list of them for
+    several trials of one unit. The truth is exactly one of: truth (a
+    simulated truth.csv t,roll,pitch,yaw,p,q,r,fx,fy,fz[,temp] in s, deg,
+    deg/s, g, deg C), reference (a measured t,roll,pitch,yaw[,valid][,rest]
+    in s and deg, one per measured input) or static=True (the unit lay
+    still); bandwidth (Hz, 0.1..100) is the low-pass of a derived truth.
+    model: the base model (sensor.toml shape: effects with their tables are
+    fixed, listed without them fitted; its [noise] judges significance) as
+    a path or TOML text; None: no effect, the default noise.
+
+    One input: the dict report.json holds (findings with effect, axis,
+    term, coefficient, std_error, t_stat, unit, rms_before/rms_after (3,)
+    deg/s and evidence; base_coefficients, rms_initial/rms_final (1-s
+    means, deg/s), noise_model, checks, localisation, ...) and model, the
+    extended model as TOML (model.toml). Several: trials.json's effects
+    (per-trial coefficients, chi2 consistency, joint estimate, added),
+    leave_one_out and consistency_level, trials (each trial's dict by
+    name: the path's folder or stem, trialN for bytes) and model (the
+    joint model as TOML). Bad input raises ValueError naming the input
+    (the path, or measured/truth/reference[k] for bytes) and the line."""

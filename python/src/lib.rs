@@ -1,7 +1,8 @@
 //! `gyrocomp._gyrocomp`: the Python binding, at the estimator's facade
-//! (`Estimator::step(sample) -> estimate`), replay (`replay::run`) and
-//! calibrate (`calibrate_runs`). The Python package `gyrocomp` re-exports it;
-//! user documentation in `docs/python.md`.
+//! (`Estimator::step(sample) -> estimate`), replay (`replay::run`),
+//! calibrate (`calibrate_runs`) and gap (`gap::inputs::analyse`, in
+//! [`gap`](mod@gap)). The Python package `gyrocomp` re-exports it; user
+//! documentation in `docs/python.md`.
 //!
 //! Units are the project's CSVs': deg/s, g, gauss, deg C, seconds; angles deg.
 //! Every input is checked before anything is stepped, so a bad batch leaves
@@ -25,6 +26,8 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::sync::{Arc, Mutex};
+
+mod gap;
 
 const R2D: f64 = 180.0 / std::f64::consts::PI;
 const D2R: f64 = std::f64::consts::PI / 180.0;
@@ -1299,6 +1302,7 @@ fn _gyrocomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(replay_standstills, m)?)?;
     m.add_function(wrap_pyfunction!(read_log, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
+    m.add_function(wrap_pyfunction!(gap::gap, m)?)?;
     m.add_function(wrap_pyfunction!(_bench_step, m)?)?;
     m.add("CSV_COLUMNS", core_replay::CSV_HEADER.trim().split(',').collect::<Vec<_>>())?;
     let fl = PyDict::new(m.py());

@@ -22,7 +22,6 @@ pub use schema::{
     AutoBool, CanConfig, Config, DaemonConfig, EkfConfig, EstimatorConfig, InputConfig, MekfConfig, Mode, MountingConfig, OutputConfig,
     RestConfig, SpeedConfig, SwitchingConfig, ThermalConfig,
 };
-#[cfg(feature = "cli")]
 pub(crate) use validate::num;
 /// The ranges of `[input]`'s rate and scales (what `validate` accepts).
 pub use validate::{ACCEL_LSB, GYRO_LSB, MAGN_LSB, RATE_HZ, TEMP_LSB};

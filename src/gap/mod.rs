@@ -49,8 +49,10 @@
 //! latter. User documentation: `docs/gap.md`.
 
 pub mod check;
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod fit;
+pub mod inputs;
 pub mod localise;
 pub mod name;
 pub mod read;
@@ -60,11 +62,13 @@ pub mod trials;
 pub mod trials_report;
 
 pub use check::Checks;
+#[cfg(feature = "cli")]
 pub use cli::{cli, GapArgs};
 pub use fit::{all_terms, tau_grid, unit, NoiseModel, Term, COLLINEAR_R2, TAU_MAX_S};
+pub use inputs::{Analysis, Source, TruthSource};
 pub use localise::{AxisLocalisation, Localisation};
 pub use name::{Ambiguity, NotSeparable, Sensitivity, Withdrawn, MAX_FINDINGS, T_MIN};
-pub use read::{load_base, parse_base, read_measured, read_truth, MeasRow, TruthIn};
+pub use read::{load_base, measured_from_bytes, parse_base, read_measured, read_truth, truth_from_bytes, MeasRow, TruthIn};
 pub use report::{finding_title, render_md, Finding, PlotData, Report};
 
 use crate::adis::{builtin_profile, Profile};
@@ -110,21 +114,12 @@ pub enum Truth {
 
 /// Read the measured file and derive the truth (`truth` as `Simulated` reads `o.truth`).
 pub fn load_trial(o: &GapOptions, truth: &Truth, profile: &Profile) -> Result<refdata::Derived, String> {
-    let meas = read_measured(&o.measured, profile)?;
-    match truth {
-        Truth::Simulated(p) => {
-            let (truth, truth_has_temp) = read_truth(p)?;
-            let info = refdata::Derivation::simulated();
-            Ok(refdata::Derived { meas, truth, truth_has_temp, info })
-        }
-        Truth::Reference { path, bandwidth } => {
-            let r = crate::reference::refcsv::read_reference(path)?;
-            refdata::from_reference(&meas, &r, *bandwidth).map_err(|e| format!("{}: {e}", path.display()))
-        }
-        Truth::Static { bandwidth } => {
-            refdata::from_static(&meas, *bandwidth).map_err(|e| format!("{} (--static): {e}", o.measured.display()))
-        }
-    }
+    let truth = match truth {
+        Truth::Simulated(p) => TruthSource::Simulated(Source::File(p.clone())),
+        Truth::Reference { path, bandwidth } => TruthSource::Reference { source: Source::File(path.clone()), bandwidth: *bandwidth },
+        Truth::Static { bandwidth } => TruthSource::Static { bandwidth: *bandwidth },
+    };
+    inputs::load(&Source::File(o.measured.clone()), &truth, profile)
 }
 
 /// Run the workflow on files and write the outputs.

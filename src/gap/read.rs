@@ -40,30 +40,35 @@ pub struct TruthIn {
 /// they start further from the truth's start than half its length (epoch
 /// seconds, say): then they too are taken relative to their first row.
 pub fn read_measured(path: &Path, profile: &Profile) -> Result<Vec<MeasRow>, String> {
-    let mut rd = crate::import::open_text(path)?;
-    let mut bytes = Vec::new();
-    std::io::Read::read_to_end(&mut rd, &mut bytes).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot open {}: {e}", path.display()))?;
+    measured_from_bytes(&bytes, &path.display().to_string(), profile)
+}
+
+/// [`read_measured`] of the file's bytes (gzip recognised); `name` names
+/// them in errors (`name:line: ...`).
+pub fn measured_from_bytes(bytes: &[u8], name: &str, profile: &Profile) -> Result<Vec<MeasRow>, String> {
+    let bytes = crate::textfile::gunzip(bytes).map_err(|e| format!("{name}: cannot read: {e}"))?;
     let first = bytes.split(|b| *b == b'\n').map(|l| l.trim_ascii()).find(|l| !l.is_empty());
     match first {
-        None => Err(format!("{}: empty file", path.display())),
-        Some(l) if l.starts_with(b"t,") || l.starts_with(b"t ,") => read_meas_csv(path, &bytes),
-        Some(_) => read_meas_log(path, &bytes, profile),
+        None => Err(format!("{name}: empty file")),
+        Some(l) if l.starts_with(b"t,") || l.starts_with(b"t ,") => read_meas_csv(name, &bytes),
+        Some(_) => read_meas_log(name, &bytes, profile),
     }
 }
 
-fn parse_row(l: &str, n: usize, path: &Path, no: usize) -> Result<Vec<f64>, String> {
+fn parse_row(l: &str, n: usize, name: &str, no: usize) -> Result<Vec<f64>, String> {
     let v: Vec<&str> = l.split(',').collect();
     if v.len() != n {
-        return Err(format!("{}:{no}: want {n} columns, got {}", path.display(), v.len()));
+        return Err(format!("{name}:{no}: want {n} columns, got {}", v.len()));
     }
     v.iter()
         .enumerate()
         .map(|(col, s)| {
-            let x: f64 = s.trim().parse().map_err(|_| format!("{}:{no}: column {}: bad number {:?}", path.display(), col + 1, s.trim()))?;
+            let x: f64 = s.trim().parse().map_err(|_| format!("{name}:{no}: column {}: bad number {:?}", col + 1, s.trim()))?;
             if x.is_finite() {
                 Ok(x)
             } else {
-                Err(format!("{}:{no}: column {}: not a finite number {:?}", path.display(), col + 1, s.trim()))
+                Err(format!("{name}:{no}: column {}: not a finite number {:?}", col + 1, s.trim()))
             }
         })
         .collect()
@@ -87,33 +92,33 @@ fn meas_range(col: usize) -> (f64, f64) {
 
 /// One measured CSV row: t and the gyro required; accelerometer,
 /// magnetometer and temperature may be empty (NaN: no such channel).
-fn parse_meas_row(l: &str, path: &Path, no: usize) -> Result<[f64; 11], String> {
+fn parse_meas_row(l: &str, name: &str, no: usize) -> Result<[f64; 11], String> {
     let v: Vec<&str> = l.split(',').collect();
     if v.len() != 11 {
-        return Err(format!("{}:{no}: want 11 columns ({MEAS_HEADER}), got {}", path.display(), v.len()));
+        return Err(format!("{name}:{no}: want 11 columns ({MEAS_HEADER}), got {}", v.len()));
     }
     let mut out = [f64::NAN; 11];
     for (col, s) in v.iter().enumerate() {
         let s = s.trim();
-        let name = MEAS_NAMES[col];
+        let column = MEAS_NAMES[col];
         if s.is_empty() {
             if col <= 3 {
-                return Err(format!("{}:{no}: column {name}: empty (t and the gyro are required)", path.display()));
+                return Err(format!("{name}:{no}: column {column}: empty (t and the gyro are required)"));
             }
             continue;
         }
-        let x: f64 = s.parse().map_err(|_| format!("{}:{no}: column {name}: bad number {s:?}", path.display()))?;
+        let x: f64 = s.parse().map_err(|_| format!("{name}:{no}: column {column}: bad number {s:?}"))?;
         let (lo, hi) = meas_range(col);
         if !(lo..=hi).contains(&x) {
-            return Err(format!("{}:{no}: column {name}: {s} is outside {lo}..{hi}", path.display()));
+            return Err(format!("{name}:{no}: column {column}: {s} is outside {lo}..{hi}"));
         }
         out[col] = x;
     }
     Ok(out)
 }
 
-fn read_meas_csv(path: &Path, bytes: &[u8]) -> Result<Vec<MeasRow>, String> {
-    let text = std::str::from_utf8(bytes).map_err(|_| format!("{}: not UTF-8 text", path.display()))?;
+fn read_meas_csv(name: &str, bytes: &[u8]) -> Result<Vec<MeasRow>, String> {
+    let text = std::str::from_utf8(bytes).map_err(|_| format!("{name}: not UTF-8 text"))?;
     let mut out = Vec::new();
     let mut header = false;
     let mut prev: Option<[f64; 11]> = None;
@@ -125,12 +130,12 @@ fn read_meas_csv(path: &Path, bytes: &[u8]) -> Result<Vec<MeasRow>, String> {
         if !header {
             let h: String = l.chars().filter(|c| !c.is_whitespace()).collect();
             if h != MEAS_HEADER {
-                return Err(format!("{}:{no}: header must be {MEAS_HEADER}", path.display()));
+                return Err(format!("{name}:{no}: header must be {MEAS_HEADER}"));
             }
             header = true;
             continue;
         }
-        let v = parse_meas_row(l, path, no)?;
+        let v = parse_meas_row(l, name, no)?;
         // a row repeated field for field is one sample logged twice (the FIRM files): kept once
         if prev.is_some_and(|p: [f64; 11]| p.iter().zip(&v).all(|(a, b)| a.to_bits() == b.to_bits())) {
             continue;
@@ -138,18 +143,18 @@ fn read_meas_csv(path: &Path, bytes: &[u8]) -> Result<Vec<MeasRow>, String> {
         prev = Some(v);
         if let Some(p) = out.last().map(|r: &MeasRow| r.t) {
             if v[0] <= p {
-                return Err(format!("{}:{no}: time {} is not after the previous row's {p}", path.display(), v[0]));
+                return Err(format!("{name}:{no}: time {} is not after the previous row's {p}", v[0]));
             }
         }
         out.push(MeasRow { t: v[0], gyro: [v[1], v[2], v[3]], acc: [v[4], v[5], v[6]], temp: v[10] });
     }
     if out.is_empty() {
-        return Err(format!("{}: no data rows", path.display()));
+        return Err(format!("{name}: no data rows"));
     }
     Ok(out)
 }
 
-fn read_meas_log(path: &Path, bytes: &[u8], profile: &Profile) -> Result<Vec<MeasRow>, String> {
+fn read_meas_log(name: &str, bytes: &[u8], profile: &Profile) -> Result<Vec<MeasRow>, String> {
     let mut asm = Assembler::new(profile.clone(), InputIds::DEFAULT);
     let mut out = Vec::new();
     let mut t_first: Option<u64> = None;
@@ -162,28 +167,34 @@ fn read_meas_log(path: &Path, bytes: &[u8], profile: &Profile) -> Result<Vec<Mea
             out.push(MeasRow { t: (s.t_us - t0) as f64 * 1e-6, gyro: s.gyro, acc: s.accel, temp: s.temp });
         }
     })
-    .map_err(|(line, e)| format!("{}: read error after line {line}: {e}", path.display()))?;
+    .map_err(|(line, e)| format!("{name}: read error after line {line}: {e}"))?;
     let (lines, bad) = (stats.lines, stats.bad_lines);
     let first_bad = stats.first_bad.map(|(l, e)| (l, e.to_string()));
     if let Some((no, e)) = &first_bad {
         if bad * 100 > lines || out.is_empty() {
             return Err(format!(
                 "{}:{no}: {e} ({bad} of {lines} lines malformed; not a candump log in the ADIS contract or a CSV with header {MEAS_HEADER})",
-                path.display()
+                name
             ));
         }
     }
     if out.is_empty() {
-        return Err(format!("{}: no complete ADIS sample in {lines} lines", path.display()));
+        return Err(format!("{name}: no complete ADIS sample in {lines} lines"));
     }
     Ok(out)
 }
 
 /// Read `truth.csv` (`t,roll,pitch,yaw,p,q,r,fx,fy,fz[,temp]`); true when it has `temp`.
 pub fn read_truth(path: &Path) -> Result<(Vec<TruthIn>, bool), String> {
-    let text = crate::textfile::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    truth_from_bytes(&bytes, &path.display().to_string())
+}
+
+/// [`read_truth`] of the file's bytes; `name` names them in errors (`name:line: ...`).
+pub fn truth_from_bytes(bytes: &[u8], name: &str) -> Result<(Vec<TruthIn>, bool), String> {
+    let text = crate::textfile::str_of(bytes).map_err(|e| format!("{name}: cannot read: {e}"))?;
     let mut it = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
-    let (_, h) = it.next().ok_or_else(|| format!("{}: empty file", path.display()))?;
+    let (_, h) = it.next().ok_or_else(|| format!("{name}: empty file"))?;
     let h: String = h.chars().filter(|c| !c.is_whitespace()).collect();
     let base = "t,roll,pitch,yaw,p,q,r,fx,fy,fz";
     let has_temp = if h == format!("{base},temp") {
@@ -191,16 +202,16 @@ pub fn read_truth(path: &Path) -> Result<(Vec<TruthIn>, bool), String> {
     } else if h == base {
         false
     } else {
-        return Err(format!("{}:1: header must be {base},temp (temp optional)", path.display()));
+        return Err(format!("{name}:1: header must be {base},temp (temp optional)"));
     };
     let n = if has_temp { 11 } else { 10 };
     let mut out: Vec<TruthIn> = Vec::new();
     for (i, l) in it {
         let no = i + 1;
-        let v = parse_row(l, n, path, no)?;
+        let v = parse_row(l, n, name, no)?;
         if let Some(p) = out.last() {
             if v[0] <= p.t {
-                return Err(format!("{}:{no}: time {} is not after the previous row's {}", path.display(), v[0], p.t));
+                return Err(format!("{name}:{no}: time {} is not after the previous row's {}", v[0], p.t));
             }
         }
         out.push(TruthIn {
@@ -212,7 +223,7 @@ pub fn read_truth(path: &Path) -> Result<(Vec<TruthIn>, bool), String> {
         });
     }
     if out.len() < 2 {
-        return Err(format!("{}: fewer than 2 data rows", path.display()));
+        return Err(format!("{name}: fewer than 2 data rows"));
     }
     Ok((out, has_temp))
 }

@@ -4,7 +4,9 @@
 //! written through [`crate::outfile`] (never half-written, never over an input).
 
 use super::check::Checks;
-use super::fit::{NoiseModel, AX};
+use super::fit::NoiseModel;
+#[cfg(feature = "cli")]
+use super::fit::AX;
 use super::localise::{AxisLocalisation, Localisation};
 use super::name::{Ambiguity, NotSeparable, Sensitivity, Withdrawn};
 use super::read::has_table;
@@ -93,7 +95,8 @@ pub struct Coefficient {
     pub unit: String,
 }
 
-/// What the plots show.
+/// What the plots show (drawn only with the `cli` feature).
+#[cfg_attr(not(feature = "cli"), allow(dead_code))]
 pub struct PlotData {
     pub(crate) initial: Vec<(f64, [f64; 3])>,
     pub(crate) fin: Vec<(f64, [f64; 3])>,
@@ -354,6 +357,7 @@ pub fn render_md(r: &Report, o: &GapOptions) -> String {
     s
 }
 
+#[cfg(feature = "cli")]
 fn plot_residual(pd: &PlotData) -> Result<String, String> {
     use plotters::prelude::*;
     let e = |x: &dyn std::fmt::Display| x.to_string();
@@ -392,6 +396,7 @@ fn plot_residual(pd: &PlotData) -> Result<String, String> {
     Ok(svg)
 }
 
+#[cfg(feature = "cli")]
 fn plot_finding(f: &(String, usize, String, Localisation, Localisation)) -> Result<String, String> {
     use plotters::prelude::*;
     let e = |x: &dyn std::fmt::Display| x.to_string();
@@ -434,4 +439,15 @@ fn plot_finding(f: &(String, usize, String, Localisation, Localisation)) -> Resu
         root.present().map_err(|x| e(&x))?;
     }
     Ok(svg)
+}
+
+/// Without `cli` (the Python package) there is no plotting library: runs that ask for plots are refused.
+#[cfg(not(feature = "cli"))]
+fn plot_residual(_: &PlotData) -> Result<String, String> {
+    Err("the SVG plots need gyrocomp's `cli` feature".into())
+}
+
+#[cfg(not(feature = "cli"))]
+fn plot_finding(_: &(String, usize, String, Localisation, Localisation)) -> Result<String, String> {
+    Err("the SVG plots need gyrocomp's `cli` feature".into())
 }

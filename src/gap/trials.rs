@@ -279,7 +279,7 @@ pub fn leave_one_out(trials: &[Trial], base: &SensorModel, profile: &Profile) ->
 }
 
 /// A trial's name: the measured file's folder for `imu.csv[.gz]` / `imu.log`, else its stem; made unique.
-fn trial_names(paths: &[PathBuf]) -> Vec<String> {
+pub(crate) fn trial_names(paths: &[PathBuf]) -> Vec<String> {
     let mut names: Vec<String> = paths
         .iter()
         .map(|p| {
@@ -333,14 +333,34 @@ pub fn cli(trials_in: &[(PathBuf, Truth)], model: &Path, out: &Path, profile_nam
         result.files = report::write_outputs(&o, &result.report, &result.model, result.plots.as_ref())?;
         trials.push(Trial { name: name.clone(), data, result });
     }
-    let all: Vec<usize> = (0..trials.len()).collect();
-    let rows = joint_rows(&trials, &all, &base, &profile)?;
-    let joint = joint_model(&base, &rows);
-    let loo = leave_one_out(&trials, &base, &profile)?;
-    let text = super::trials_report::render(&trials, &rows, &loo, model, out);
+    let j = joint(&trials, &base, &profile)?;
+    let text = super::trials_report::render(&trials, &j.rows, &j.leave_one_out, model, out);
     print!("{text}");
-    super::trials_report::write(out, &inputs, &text, &rows, &loo, &joint)?;
+    super::trials_report::write(out, &inputs, &text, &j)?;
     Ok(())
+}
+
+/// Steps 2-4 on every trial: what `trials.json` holds ([`Joint::to_json`]) and the joint model.
+pub struct Joint {
+    pub rows: Vec<TermRow>,
+    pub leave_one_out: Vec<HeldOut>,
+    pub model: SensorModel,
+}
+
+impl Joint {
+    /// `trials.json`: the terms across the trials, leave-one-trial-out and the consistency level.
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({ "effects": self.rows, "leave_one_out": self.leave_one_out, "consistency_level": CONSISTENCY_LEVEL })
+    }
+}
+
+/// The joint analysis of trials each run alone (steps 2-4).
+pub fn joint(trials: &[Trial], base: &SensorModel, profile: &Profile) -> Result<Joint, String> {
+    let all: Vec<usize> = (0..trials.len()).collect();
+    let rows = joint_rows(trials, &all, base, profile)?;
+    let model = joint_model(base, &rows);
+    let leave_one_out = leave_one_out(trials, base, profile)?;
+    Ok(Joint { rows, leave_one_out, model })
 }
 
 #[cfg(test)]

@@ -1,9 +1,8 @@
 //! What `gap` with several trials prints and writes: `trials.md` (the
 //! printed text), `trials.json`, `model.toml` (the joint model) in `--out`.
 
-use super::trials::{HeldOut, TermRow, Trial, CONSISTENCY_LEVEL};
+use super::trials::{HeldOut, Joint, TermRow, Trial, CONSISTENCY_LEVEL};
 use crate::outfile;
-use crate::sim::model::SensorModel;
 use std::path::Path;
 
 /// A coefficient with its 95 % interval.
@@ -91,13 +90,12 @@ pub fn render(trials: &[Trial], rows: &[TermRow], loo: &[HeldOut], model: &Path,
 }
 
 /// Write the files (temp-and-rename; an input is never an output).
-pub fn write(out: &Path, inputs: &[&Path], text: &str, rows: &[TermRow], loo: &[HeldOut], joint: &SensorModel) -> Result<(), String> {
+pub fn write(out: &Path, inputs: &[&Path], text: &str, joint: &Joint) -> Result<(), String> {
     let paths = [out.join("trials.md"), out.join("trials.json"), out.join("model.toml")];
     outfile::refuse_inputs_as_outputs(inputs, &paths.iter().map(|p| p.as_path()).collect::<Vec<_>>())?;
     outfile::create_dir(out).map_err(|e| format!("--out {}: {e}", out.display()))?;
-    let json = serde_json::json!({ "effects": rows, "leave_one_out": loo, "consistency_level": CONSISTENCY_LEVEL });
-    let json = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())? + "\n";
-    for (p, bytes) in paths.iter().zip([text.as_bytes(), json.as_bytes(), joint.to_toml().as_bytes()]) {
+    let json = serde_json::to_string_pretty(&joint.to_json()).map_err(|e| e.to_string())? + "\n";
+    for (p, bytes) in paths.iter().zip([text.as_bytes(), json.as_bytes(), joint.model.to_toml().as_bytes()]) {
         outfile::write_atomic(p, bytes).map_err(|e| format!("{}: {e}", p.display()))?;
     }
     Ok(())

@@ -6,7 +6,6 @@
 //! marks rows where the unit is known to be still. Both columns are
 //! optional (every row valid; no rest phase known). Gzip is recognised.
 
-use crate::import::open_text;
 use nalgebra::UnitQuaternion;
 use std::path::Path;
 
@@ -62,12 +61,15 @@ fn angle(s: &str, name: &str, max: f64, path: &str, no: u64) -> Result<f64, Stri
 
 /// Read a reference CSV.
 pub fn read_reference(path: &Path) -> Result<Reference, String> {
-    let p = path.display().to_string();
-    let mut rd = open_text(path)?;
-    let mut bytes = Vec::new();
-    std::io::Read::read_to_end(&mut rd, &mut bytes).map_err(|e| format!("{p}: {e}"))?;
-    let text = crate::textfile::from_bytes(bytes).map_err(|e| format!("{p}: {e}"))?;
-    parse_reference(&text, &p)
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot open {}: {e}", path.display()))?;
+    reference_from_bytes(&bytes, &path.display().to_string())
+}
+
+/// [`read_reference`] of the file's bytes (gzip recognised); `p` names them in errors.
+pub fn reference_from_bytes(bytes: &[u8], p: &str) -> Result<Reference, String> {
+    let bytes = crate::textfile::gunzip(bytes).map_err(|e| format!("{p}: {e}"))?;
+    let text = crate::textfile::str_of(&bytes).map_err(|e| format!("{p}: {e}"))?;
+    parse_reference(text, p)
 }
 
 /// [`read_reference`] of text (`p` names it in errors).

@@ -13,8 +13,7 @@ use crate::adis::builtin_profile;
 use crate::outfile::refuse_inputs_as_outputs;
 use std::path::{Path, PathBuf};
 
-/// The files `simulate` writes into its directory.
-pub const FILES: [&str; 6] = ["imu.log", "truth.csv", "sensor.toml", "bias.csv", "scenario.toml", "config.toml"];
+pub use super::FILES;
 
 /// Scenarios that have no manoeuvres for `--hard` to make harder.
 const NO_MANOEUVRES: [&str; 5] = ["static", "chamber", "paper", "urban", "crawl"];

@@ -39,7 +39,7 @@ impl DbcSim {
         };
         let dbc = Path::new(&cfg.input.dbc);
         let dbc_name = dbc.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
-        let taken = super::cli::FILES.iter().chain(TWIN_FILES.iter()).chain(["vehicle.csv", "car.dbc"].iter());
+        let taken = super::FILES.iter().chain(TWIN_FILES.iter()).chain(["vehicle.csv", "car.dbc"].iter());
         if dbc_name.is_empty() || taken.into_iter().any(|f| *f == dbc_name) {
             return Err(format!("--input-dbc: the DBC's file name {dbc_name:?} is one simulate writes itself; rename it"));
         }

@@ -26,6 +26,7 @@
 //! on separate streams (motion, sensor, noise, calibration), so the same
 //! seed and options give byte-identical files.
 
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod dbcout;
 pub mod model;
@@ -54,6 +55,9 @@ use stats::{DriveStats, StatsAcc};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use wheel::{WheelBus, WheelParams};
+
+/// The files `simulate` writes into its directory.
+pub const FILES: [&str; 6] = ["imu.log", "truth.csv", "sensor.toml", "bias.csv", "scenario.toml", "config.toml"];
 
 /// Time of the first frame in the log, s since the epoch.
 pub const LOG_EPOCH_S: u64 = 1_700_000_000;
