@@ -89,7 +89,49 @@ pub fn evaluate_seeds_with(
     let peers: &[&str] = if o.peers { &PEERS } else { &[] };
     let names: Vec<String> = case_list.iter().map(|(n, _)| n.clone()).chain(peers.iter().map(|p| p.to_string())).collect();
     let mut out = String::new();
-    let per_seed = Table::new(&[
+    let per_seed = per_seed_table();
+    let mut win: Option<Window> = None;
+    for (i, &seed) in list.iter().enumerate() {
+        let mut so = sim.clone();
+        so.seed = seed;
+        let data = RunData::simulate(&so)?;
+        let w = Window::of(&data);
+        if win.is_none() {
+            if o.score_from >= w.end {
+                return Err(format!(
+                    "--score-from {} s is at or after the end of the runs ({:.1} s): nothing to score",
+                    o.score_from, w.end
+                ));
+            }
+            let head = per_seed_head(&per_seed, &w, o.score_from);
+            eprint!("{head}");
+            out += &head;
+            if w.is_empty() {
+                eprintln!("{}", w.warning());
+            }
+        }
+        let w = *win.get_or_insert(w);
+        let row = score_seed(&data, seed, &case_list, &w, o)?;
+        for line in seed_lines(&per_seed, &row, &w) {
+            out += &line;
+            eprint!("[{}/{}] {line}", i + 1, list.len());
+        }
+        rows.push(row);
+    }
+    let w = win.ok_or("no seed")?;
+    out += &summary(sim, &rows, &names, &w, o.score_from);
+    if let Some(rd) = &o.out {
+        let json = serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
+        let inputs: Vec<&Path> = config_path.into_iter().collect();
+        write_reports(rd, &inputs, &[("report.json", json.into_bytes())])?;
+        out += &format!("wrote {}\n", rd.join("report.json").display());
+    }
+    Ok(out)
+}
+
+/// The per-seed table's columns.
+fn per_seed_table() -> Table {
+    Table::new(&[
         ("seed", ""),
         ("case", ""),
         ("max roll", "deg"),
@@ -106,74 +148,68 @@ pub fn evaluate_seeds_with(
     ])
     .text_columns(2)
     .width(0, 5)
-    .width(1, 22);
-    let mut win: Option<Window> = None;
-    for (i, &seed) in list.iter().enumerate() {
-        let mut so = sim.clone();
-        so.seed = seed;
-        let data = RunData::simulate(&so)?;
-        let w = Window::of(&data);
-        if win.is_none() {
-            if o.score_from >= w.end {
-                return Err(format!(
-                    "--score-from {} s is at or after the end of the runs ({:.1} s): nothing to score",
-                    o.score_from, w.end
-                ));
-            }
-            let head = format!(
-                "per seed: max roll/pitch, rms yaw, rms bias and the time of the largest tilt error over t = {:.1}..{:.1} s; \
-                 'still moving' the seconds of the whole run with a standstill declared while the truth moves faster than {MOVING_MPS} m/s \
-                 ('-': no vehicle truth); 'man' over {}; 'oracle' the oracle floor there\n{}",
-                o.score_from,
-                w.end,
-                if w.is_empty() {
-                    "the manoeuvres (none in these runs)".to_string()
-                } else {
-                    format!("t = {:.1}..{:.1} s", w.start, w.end)
-                },
-                per_seed.header()
-            );
-            eprint!("{head}");
-            out += &head;
-            if w.is_empty() {
-                eprintln!("{}", w.warning());
-            }
+    .width(1, 22)
+}
+
+/// What the per-seed table's columns mean over these windows, and its header.
+fn per_seed_head(per_seed: &Table, w: &Window, score_from: f64) -> String {
+    format!(
+        "per seed: max roll/pitch, rms yaw, rms bias and the time of the largest tilt error over t = {:.1}..{:.1} s; \
+         'still moving' the seconds of the whole run with a standstill declared while the truth moves faster than {MOVING_MPS} m/s \
+         ('-': no vehicle truth); 'man' over {}; 'oracle' the oracle floor there\n{}",
+        score_from,
+        w.end,
+        if w.is_empty() { "the manoeuvres (none in these runs)".to_string() } else { format!("t = {:.1}..{:.1} s", w.start, w.end) },
+        per_seed.header()
+    )
+}
+
+/// One seed: every case run and scored from `score_from` and over the
+/// manoeuvres, the peers beside them with `--peers`, and the oracle floor.
+fn score_seed(data: &RunData, seed: u64, case_list: &[(String, Config)], w: &Window, o: &EvalOptions) -> Result<SeedRow, String> {
+    let mut ms = Vec::new();
+    let mut man = Vec::new();
+    let mut orc = None;
+    // the first case's config and magnetometer decision, for the peers
+    let mut first: Option<(Config, bool)> = None;
+    for (name, c) in case_list {
+        let mut c = c.clone();
+        if let Some(u) = &data.unit_config {
+            c.thermal = u.thermal.clone();
+            c.mounting = u.mounting.clone();
+            c.speed = u.speed.clone();
         }
-        let w = *win.get_or_insert(w);
-        let mut ms = Vec::new();
-        let mut man = Vec::new();
-        let mut orc = None;
-        // the first case's config and magnetometer decision, for the peers
-        let mut first: Option<(Config, bool)> = None;
-        for (name, c) in &case_list {
-            let mut c = c.clone();
-            if let Some(u) = &data.unit_config {
-                c.thermal = u.thermal.clone();
-                c.mounting = u.mounting.clone();
-                c.speed = u.speed.clone();
-            }
-            let (est, mode_s, magn) = data.estimates_and_magnetometer(&c)?;
-            if orc.is_none() {
-                orc = Some(oracle(&data, &est, w.start).0);
-            }
-            let still = data.still_moving(&est);
-            ms.push(Metrics { still_moving_s: still, ..score(name, &data, &est, mode_s, o.score_from) });
-            man.push(Metrics { still_moving_s: still, ..score(name, &data, &est, mode_s, w.start) });
-            first.get_or_insert((c, magn));
+        let (est, mode_s, magn) = data.estimates_and_magnetometer(&c)?;
+        if orc.is_none() {
+            orc = Some(oracle(data, &est, w.start).0);
         }
-        if o.peers {
-            let (c, magn) = first.as_ref().ok_or("no case")?;
-            for (name, att) in run_peers(&data, c, *magn).map_err(|e| format!("seed {seed}: {e}"))? {
-                ms.push(score_attitude(name, &data, &att, o.score_from));
-                man.push(score_attitude(name, &data, &att, w.start));
-            }
+        let still = data.still_moving(&est);
+        ms.push(Metrics { still_moving_s: still, ..score(name, data, &est, mode_s, o.score_from) });
+        man.push(Metrics { still_moving_s: still, ..score(name, data, &est, mode_s, w.start) });
+        first.get_or_insert((c, magn));
+    }
+    if o.peers {
+        let (c, magn) = first.as_ref().ok_or("no case")?;
+        for (name, att) in run_peers(data, c, *magn).map_err(|e| format!("seed {seed}: {e}"))? {
+            ms.push(score_attitude(name, data, &att, o.score_from));
+            man.push(score_attitude(name, data, &att, w.start));
         }
-        let orc = orc.ok_or("no case")?;
-        for (m, mm) in ms.iter().zip(&man) {
+    }
+    let oracle = orc.ok_or("no case")?;
+    Ok(SeedRow { seed, cases: ms, manoeuvres: man, oracle })
+}
+
+/// A seed's lines of the per-seed table, one per case and peer.
+fn seed_lines(per_seed: &Table, row: &SeedRow, w: &Window) -> Vec<String> {
+    let orc = &row.oracle;
+    let gone = |v: f64| if w.is_empty() { "-".to_string() } else { num(v, 3) };
+    row.cases
+        .iter()
+        .zip(&row.manoeuvres)
+        .map(|(m, mm)| {
             let brms = (m.bias_rms.iter().map(|b| b * b).sum::<f64>() / 3.0).sqrt();
-            let gone = |v: f64| if w.is_empty() { "-".to_string() } else { num(v, 3) };
-            let line = per_seed.line(&[
-                seed.to_string(),
+            per_seed.line(&[
+                row.seed.to_string(),
                 m.name.clone(),
                 num(m.max_err[0], 3),
                 num(m.max_err[1], 3),
@@ -186,13 +222,16 @@ pub fn evaluate_seeds_with(
                 gone(mm.rms_err[2]),
                 gone(orc.max_err[0]),
                 gone(orc.max_err[1]),
-            ]);
-            out += &line;
-            eprint!("[{}/{}] {line}", i + 1, list.len());
-        }
-        rows.push(SeedRow { seed, cases: ms, manoeuvres: man, oracle: orc });
-    }
-    let w = win.ok_or("no seed")?;
+            ])
+        })
+        .collect()
+}
+
+/// The summary over the seeds: its title with the oracle floor, and per
+/// case the worst, median and ratio, scored from `score_from` and over the
+/// manoeuvres.
+fn summary(sim: &SimOptions, rows: &[SeedRow], names: &[String], w: &Window, score_from: f64) -> String {
+    let mut out = String::new();
     let orc_med = median(&rows.iter().map(|r| r.oracle.tilt_max()).collect::<Vec<_>>());
     let name =
         format!("{}{}{}", sim.scenario, if sim.hard { " --hard" } else { "" }, if sim.power_on_moving { " --power-on-moving" } else { "" });
@@ -215,7 +254,7 @@ pub fn evaluate_seeds_with(
     }
     out += "(worst = the largest over the seeds; median max = the median over the seeds of each seed's max roll/pitch error; \
              ratio = median max / oracle floor; seeds <= 2 deg: seeds whose max roll and pitch error are within 2 deg)\n";
-    let summary = Table::new(&[
+    let table = Table::new(&[
         ("case", ""),
         ("worst roll", "deg"),
         ("worst pitch", "deg"),
@@ -227,13 +266,13 @@ pub fn evaluate_seeds_with(
         ("worst still moving", "s"),
     ])
     .width(0, 22);
-    let mut windows = vec![(format!("scored over t = {:.1}..{:.1} s", o.score_from, w.end), false)];
+    let mut windows = vec![(format!("scored over t = {:.1}..{:.1} s", score_from, w.end), false)];
     if !w.is_empty() {
         windows.push((w.title(&sim.scenario), true));
     }
     for (title, man) in windows {
         out += &format!("-- {title}\n");
-        out += &summary.header();
+        out += &table.header();
         for (ci, name) in names.iter().enumerate() {
             let pick = |r: &SeedRow| if man { r.manoeuvres[ci].clone() } else { r.cases[ci].clone() };
             let per: Vec<Metrics> = rows.iter().map(pick).collect();
@@ -243,7 +282,7 @@ pub fn evaluate_seeds_with(
             let wy = per.iter().map(|m| m.rms_err[2]).fold(0.0, f64::max);
             let ok = per.iter().filter(|m| m.tilt_max() <= 2.0).count();
             let worst = rows.iter().zip(&per).max_by(|a, b| a.1.tilt_max().total_cmp(&b.1.tilt_max())).map(|r| r.0.seed).unwrap_or(0);
-            out += &summary.line(&[
+            out += &table.line(&[
                 name.clone(),
                 num(wr, 3),
                 num(wp, 3),
@@ -256,11 +295,5 @@ pub fn evaluate_seeds_with(
             ]);
         }
     }
-    if let Some(rd) = &o.out {
-        let json = serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
-        let inputs: Vec<&Path> = config_path.into_iter().collect();
-        write_reports(rd, &inputs, &[("report.json", json.into_bytes())])?;
-        out += &format!("wrote {}\n", rd.join("report.json").display());
-    }
-    Ok(out)
+    out
 }
