@@ -43,3 +43,29 @@ def run(cmd, **kw):
     p = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, **kw)
     assert p.returncode == 0, f"{cmd} failed ({p.returncode}):\n{p.stderr}"
     return p
+
+
+def ticks_during(call):
+    """Run `call()` while another Python thread stamps the clock as fast as
+    it can: (t0, t1, stamps inside the call's 15-ms-trimmed span). With the
+    GIL held by the call, that thread could run only at a switch (every
+    5 ms) just before or after."""
+    import threading
+    import time
+    stamps = []
+    done = threading.Event()
+
+    def count():
+        while not done.is_set():
+            stamps.append(time.perf_counter())
+
+    th = threading.Thread(target=count)
+    th.start()
+    try:
+        t0 = time.perf_counter()
+        call()
+        t1 = time.perf_counter()
+    finally:
+        done.set()
+        th.join()
+    return t0, t1, [s for s in stamps if t0 + 0.015 < s < t1 - 0.015]

@@ -9,7 +9,7 @@ import pytest
 
 import gyrocomp
 
-from conftest import run
+from conftest import run, ticks_during
 
 HIDDEN = """[gyro]
 effects = ["turn_on_bias", "scale_factor", "time_delay"]
@@ -140,29 +140,11 @@ def test_gap_bad_reference_row_names_its_line(sims):
 def test_gap_releases_the_gil(sims):
     """Another Python thread runs while gap works (two trials with their
     joint analysis and leave-one-out: a call of about half a second)."""
-    import threading
-    import time
     _, sims_ = sims
     logs = [(s / "imu.log").read_bytes() for s in sims_]
     refs = [(s / "ref.csv").read_bytes() for s in sims_]
-    stamps = []
-    done = threading.Event()
-
-    def count():
-        while not done.is_set():
-            stamps.append(time.perf_counter())
-
-    th = threading.Thread(target=count)
-    th.start()
-    try:
-        t0 = time.perf_counter()
-        gyrocomp.gap(logs, reference=refs, model=BASE)
-        t1 = time.perf_counter()
-    finally:
-        done.set()
-        th.join()
+    t0, t1, inside = ticks_during(lambda: gyrocomp.gap(logs, reference=refs, model=BASE))
     assert t1 - t0 >= 0.1, f"the call is too short to tell ({t1 - t0:.3f} s)"
-    inside = [s for s in stamps if t0 + 0.015 < s < t1 - 0.015]
     assert len(inside) > 100
 
 

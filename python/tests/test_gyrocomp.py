@@ -5,14 +5,13 @@ import io
 import json
 import math
 import pathlib
-import threading
 import zlib
 
 import numpy as np
 import pytest
 
 import gyrocomp
-from conftest import run
+from conftest import run, ticks_during
 
 # the CSV's printed decimals per column (src/replay.rs write_csv_row)
 DECIMALS = {"t": 6, "roll": 4, "pitch": 4, "yaw": 4, "rate_x": 4, "rate_y": 4, "rate_z": 4,
@@ -335,30 +334,13 @@ def test_long_calls_release_the_gil(samples):
     held it could run only at a switch (every 5 ms) just before or after.
     The batch grows until one call lasts at least 0.2 s, whatever the
     machine's speed (a fixed batch ran 0.049 s on an idle machine)."""
-    import time
     for reps in (16, 64, 256, 1024):
         big = {k: np.concatenate([samples[k]] * reps) for k in ("gyr", "acc", "mag", "temp")}
-        stamps = []
-        done = threading.Event()
-
-        def count():
-            while not done.is_set():
-                stamps.append(time.perf_counter())
-
-        th = threading.Thread(target=count)
         e = gyrocomp.Estimator(204.8)
-        th.start()
-        try:
-            t0 = time.perf_counter()
-            e.update_batch(**big)
-            t1 = time.perf_counter()
-        finally:
-            done.set()
-            th.join()
+        t0, t1, inside = ticks_during(lambda: e.update_batch(**big))
         if t1 - t0 >= 0.2:
             break
     assert t1 - t0 >= 0.2, f"the call is too short to tell ({t1 - t0:.3f} s for {reps} copies)"
-    inside = [s for s in stamps if t0 + 0.015 < s < t1 - 0.015]
     assert len(inside) > 100
 
 
