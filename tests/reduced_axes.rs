@@ -190,3 +190,46 @@ fn cantools_decodes_the_reduced_outputs_invalid_bits() {
     print!("{so}");
     assert!(std::fs::read_to_string(&csv).unwrap().lines().nth(1).unwrap().ends_with(",91"), "invalid = REDUCED | TEMP");
 }
+
+/// Hand-made KINEMATICS frames (config/toyota-kinematics.toml) with a known
+/// yaw-rate bias of 0.56 deg/s, the car standing 5 s, then a 2 s turn at 10
+/// deg/s: the bias is learned at the standstill, the heading is the turn's
+/// (not the bias's drift), roll and pitch go out invalid as the fill value.
+#[test]
+fn a_known_yaw_bias_is_learned_at_a_standstill_from_kinematics_frames() {
+    let cfg = Config::load(&Path::new(ROOT).join("config/toyota-kinematics.toml")).unwrap_or_else(|e| panic!("{e}"));
+    let plan = cfg.input.plan.0.clone().expect("the DBC plan");
+    let mut pipe = Pipeline::from_config(&cfg).unwrap_or_else(|e| panic!("{e}"));
+    let mut keep = Keep::default();
+    struct Both<'a>(&'a mut Keep, Vec<gyrocomp::output::Decoded>);
+    impl Sink for Both<'_> {
+        fn output(&mut self, e: &Estimate, f: &Frames) {
+            self.0.output(e, f);
+            self.1.push(gyrocomp::output::decode(f));
+        }
+    }
+    let mut sink = Both(&mut keep, Vec::new());
+    let (bias, period) = (0.56, 1.0 / cfg.input.rate_hz);
+    let n_still = (5.0 / period) as u64;
+    let n_turn = (2.0 / period) as u64;
+    for k in 0..n_still + n_turn {
+        // the turn: 10 deg/s (one quantum of the 0.244 deg/s grid from 10.56)
+        let rate = if k < n_still { 0.0 } else { 10.004 };
+        let vals = [0.0, 0.0, rate + bias, 0.0, 0.0, 0.0, 0.0];
+        for f in plan.encode(k, &vals) {
+            let t_us = 1_000_000 + (k as f64 * period * 1e6) as u64;
+            pipe.push(t_us, gyrocomp::adis::RawFrame::classic(f.id, &f.data), &mut sink);
+        }
+    }
+    let decoded = sink.1;
+    let r = pipe.estimator().reduced().expect("the reduced-axis filter");
+    assert!((r.bias() - bias).abs() < 0.005, "bias learned {} vs {bias}", r.bias());
+    assert!(r.counters.standstill_windows >= 4, "{:?}", r.counters);
+    // the heading: the turn's 20 deg, within the first window's drift (0.56 deg) and the quantum
+    let yaw = keep.1.last().unwrap().yaw;
+    assert!((yaw - 20.0).abs() < 0.8, "heading {yaw}, the turn's 20 deg");
+    let last = decoded.last().unwrap();
+    assert_eq!(last.invalid, invalid::REDUCED | invalid::TEMP);
+    assert_eq!((last.att[0], last.att[1]), (-327.68, -327.68), "roll and pitch: the fill value");
+    assert!((last.rate[2] - 10.0).abs() < 0.02 && (last.bias[2] - bias).abs() < 0.005, "{last:?}");
+}
