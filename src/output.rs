@@ -146,11 +146,7 @@ pub fn encode(e: &Estimate, c: &StatusCounters, ids: &OutputConfig, extra_flags:
         fl |= flags::RATE_SAT;
     }
     let ang = [q(e.roll, ANGLE_SCALE, inv::ROLL).0, q(e.pitch, ANGLE_SCALE, inv::PITCH).0, q(e.yaw, ANGLE_SCALE, inv::YAW).0];
-    let bias = [
-        q(e.bias[0], BIAS_SCALE, inv::RATE_X).0,
-        q(e.bias[1], BIAS_SCALE, inv::RATE_Y).0,
-        q(e.bias[2], BIAS_SCALE, inv::RATE_Z).0,
-    ];
+    let bias = [q(e.bias[0], BIAS_SCALE, inv::RATE_X).0, q(e.bias[1], BIAS_SCALE, inv::RATE_Y).0, q(e.bias[2], BIAS_SCALE, inv::RATE_Z).0];
     let mut st = [0u8; 8];
     let w0: u16 = (e.mode as u16 & 0x3) | ((fl & 0x3FFF) << 2);
     st[0..2].copy_from_slice(&w0.to_le_bytes());
@@ -205,7 +201,9 @@ pub fn decode(frames: &[OutFrame]) -> Decoded {
         errors: st[6],
         lost: st[7],
         aid: frames.get(AID).map(|f| decode_aid(&f.data).0),
-        invalid: frames.get(AID).map_or(0, |f| (u32::from_le_bytes([f.data[0], f.data[1], f.data[2], f.data[3]]) >> INVALID_SHIFT) as u8 & 0x7F),
+        invalid: frames
+            .get(AID)
+            .map_or(0, |f| (u32::from_le_bytes([f.data[0], f.data[1], f.data[2], f.data[3]]) >> INVALID_SHIFT) as u8 & 0x7F),
     }
 }
 

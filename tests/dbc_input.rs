@@ -208,11 +208,15 @@ fn check_config_prints_the_mapping_and_refuses_what_cannot_run() {
     let toyota = Path::new(ROOT).join("config/toyota-kinematics.toml");
     let (ok, out, err) = check_config(&toyota);
     assert!(ok, "{err}");
-    for want in ["#   gyro_z = -KINEMATICS.YAW_RATE: bit 1 size 10 Motorola", "# reduced axes (gyro_x, gyro_y, accel_z not mapped)", "roll, pitch"] {
+    for want in
+        ["#   gyro_z = -KINEMATICS.YAW_RATE: bit 1 size 10 Motorola", "# reduced axes (gyro_x, gyro_y, accel_z not mapped)", "roll, pitch"]
+    {
         assert!(out.contains(want), "{want} missing:\n{out}");
     }
     // without the yaw rate or a horizontal axis, or without EST_AID: refused, saying why
-    let base = std::fs::read_to_string(&toyota).unwrap().replace("dbc = \"toyota-kinematics.dbc\"", &format!("dbc = \"{ROOT}/config/toyota-kinematics.dbc\""));
+    let base = std::fs::read_to_string(&toyota)
+        .unwrap()
+        .replace("dbc = \"toyota-kinematics.dbc\"", &format!("dbc = \"{ROOT}/config/toyota-kinematics.dbc\""));
     for (edit, key, want) in [
         (base.replace("accel_y = \"KINEMATICS.ACCEL_Y\"\n", ""), "input.signals", "accel_y not mapped: a unit without all six axes needs"),
         (base.replace("gyro_z = \"-KINEMATICS.YAW_RATE\"", "gyro_x = \"-KINEMATICS.YAW_RATE\""), "input.signals", "gyro_z not mapped"),

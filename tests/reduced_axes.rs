@@ -121,7 +121,10 @@ fn the_cars_own_yaw_rate_corrected_beats_the_raw_one() {
     let reference = reference(&car);
     let d = tempfile::tempdir().unwrap();
     println!("the comma2k19 RAV4, 60 s, KINEMATICS yaw rate against the reference's heading rate (+-0.25 s means, 1..59 s):");
-    println!("{:<22} {:>10} {:>14} {:>12} {:>16} {:>9} {:>8}", "config", "raw RMS", "corrected RMS", "bias end", "raw-ref mean", "stand w", "cruise w");
+    println!(
+        "{:<22} {:>10} {:>14} {:>12} {:>16} {:>9} {:>8}",
+        "config", "raw RMS", "corrected RMS", "bias end", "raw-ref mean", "stand w", "cruise w"
+    );
     let mut rows = Vec::new();
     for speed in [false, true] {
         let path = config(d.path(), &car, speed);

@@ -435,11 +435,9 @@ impl Estimator {
                 let s = m.bias_sigma();
                 Learned { bias, bias_sigma: [s[0] * R2D, s[1] * R2D, s[2] * R2D], temp }
             }),
-            Filter::Reduced(r) => r.known().then(|| Learned {
-                bias: [0.0, 0.0, r.bias()],
-                bias_sigma: [0.0, 0.0, r.bias_sigma()],
-                temp: self.temp_prev,
-            }),
+            Filter::Reduced(r) => {
+                r.known().then(|| Learned { bias: [0.0, 0.0, r.bias()], bias_sigma: [0.0, 0.0, r.bias_sigma()], temp: self.temp_prev })
+            }
         };
         l.or(self.prior)
     }
@@ -704,17 +702,7 @@ impl Estimator {
                 let b = m.bias();
                 let slope_point = m.take_rest_point();
                 let bias = [b[0] * R2D, b[1] * R2D, b[2] * R2D];
-                FilterOut {
-                    mode,
-                    flags: fl,
-                    ratio,
-                    att: m.euler(),
-                    bias,
-                    slope_point,
-                    finite: m.started(),
-                    aid: m.aid_word(),
-                    invalid: 0,
-                }
+                FilterOut { mode, flags: fl, ratio, att: m.euler(), bias, slope_point, finite: m.started(), aid: m.aid_word(), invalid: 0 }
             }
         }
     }

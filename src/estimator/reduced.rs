@@ -149,6 +149,8 @@ pub struct ReducedCounters {
     /// Windows read as standstills and as straight cruises (each an update).
     pub standstill_windows: u32,
     pub cruise_windows: u32,
+    /// Seconds with a fresh wheel speed.
+    pub speed_s: f64,
 }
 
 impl Reduced {
@@ -220,6 +222,7 @@ impl Reduced {
         }
         if self.p.speed_aided && self.speed.is_some() {
             fl |= flags::SPEED_AIDED;
+            self.counters.speed_s += dt;
         }
         (mode, fl)
     }
