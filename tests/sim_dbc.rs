@@ -168,7 +168,9 @@ fn an_adis_config_is_refused_a_reduced_one_simulates() {
     let f: Vec<f64> = last.split(',').map(|v| v.parse().unwrap()).collect();
     assert_eq!((f[1], f[2], f[4], f[5]), (0.0, 0.0, 0.0, 0.0), "{last}");
     std::fs::remove_dir_all(&out).unwrap();
-    for (c, want) in [("gyrocomp.toml", "not format = \"dbc\"")] {
+    // the ADIS config: refused
+    {
+        let (c, want) = ("gyrocomp.toml", "not format = \"dbc\"");
         let o = Command::new(common::bin())
             .args([
                 "simulate",

@@ -111,9 +111,10 @@ impl Sums {
         let mean = self.gz[0] / n;
         let quiet = std(self.gz, n) < QUIET_RATE_DPS;
         let speed = speed_aided && !self.unknown;
-        let w = if speed && self.v_max < STAND_MS {
-            Window::Standstill
-        } else if !speed && quiet && std(self.ax, n) < QUIET_ACCEL_G && std(self.ay, n) < QUIET_ACCEL_G {
+        // with wheel speeds the wheels decide; without, the quiet yaw rate and ax, ay
+        let stands =
+            if speed { self.v_max < STAND_MS } else { quiet && std(self.ax, n) < QUIET_ACCEL_G && std(self.ay, n) < QUIET_ACCEL_G };
+        let w = if stands {
             Window::Standstill
         } else if speed && quiet && self.v_min > CRUISE_MS && (self.ay[0] / n).abs() < CRUISE_AY_G {
             Window::Cruise
