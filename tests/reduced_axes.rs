@@ -236,3 +236,47 @@ fn a_known_yaw_bias_is_learned_at_a_standstill_from_kinematics_frames() {
     assert_eq!((last.att[0], last.att[1]), (-327.68, -327.68), "roll and pitch: the fill value");
     assert!((last.rate[2] - 10.0).abs() < 0.02 && (last.bias[2] - bias).abs() < 0.005, "{last:?}");
 }
+
+/// A reduced unit with a temperature (an MM7.10 without its pitch rate and
+/// vertical axis: `config/mm7p10.toml` less `gyro_y`, `accel_z` and `TX3`):
+/// the bias learned at a standstill at 25 deg C is carried by the thermal
+/// curve (0.02 deg/s per deg C) while the car drives and warms to 45 deg C;
+/// without the curve it stays where it was learned.
+#[test]
+fn the_thermal_curve_carries_the_yaw_bias_when_a_temperature_is_mapped() {
+    let d = tempfile::tempdir().unwrap();
+    let base = std::fs::read_to_string(Path::new(ROOT).join("config/mm7p10.toml")).unwrap();
+    let mut text: String =
+        base.lines().filter(|l| !l.starts_with("gyro_y =") && !l.starts_with("accel_z =")).map(|l| format!("{l}\n")).collect();
+    text = text
+        .replace("dbc = \"mm7p10.dbc\"", &format!("dbc = {:?}", format!("{ROOT}/config/mm7p10.dbc")))
+        .replace(", \"TX3.MSG_CNT_TX3\"]", "]");
+    let run = |thermal: bool| -> (f64, u8) {
+        let t = format!("{text}[thermal]\nenabled = {thermal}\nt0 = 25.0\np1 = [0.0, 0.0, 0.02]\np2 = [0.0, 0.0, 0.0]\n");
+        let p = d.path().join("mm5.toml");
+        std::fs::write(&p, t).unwrap();
+        let cfg = Config::load(&p).unwrap_or_else(|e| panic!("{e}"));
+        let plan = cfg.input.plan.0.clone().expect("the DBC plan");
+        let mut pipe = Pipeline::from_config(&cfg).unwrap_or_else(|e| panic!("{e}"));
+        let mut keep = Keep::default();
+        let (still, drive) = (400u64, 2000u64);
+        for k in 0..still + drive {
+            let temp = if k < still { 25.0 } else { 25.0 + 20.0 * (k - still) as f64 / drive as f64 };
+            let bias = 0.3 + 0.02 * (temp - 25.0);
+            // driving: a weaving yaw rate and a shaking body, never quiet
+            let (rate, shake) = if k < still { (0.0, 0.0) } else { (8.0 * (k as f64 * 0.2).sin(), 0.05 * (k as f64 * 0.9).sin()) };
+            let vals = [0.0, 0.0, rate + bias, shake, shake, 0.0, temp];
+            for f in plan.encode(k, &vals) {
+                pipe.push(1_000_000 + k * 10_000, gyrocomp::adis::RawFrame::classic(f.id, &f.data), &mut keep);
+            }
+        }
+        let last = keep.1.last().copied().expect("estimates");
+        (last.bias[2], last.invalid)
+    };
+    let (with_curve, invalid_bits) = run(true);
+    let (without, _) = run(false);
+    println!("bias at 45 deg C: with the curve {with_curve:.3} deg/s (true 0.700), without {without:.3} (learned at 25 deg C: 0.300)");
+    assert_eq!(invalid_bits, invalid::REDUCED, "a temperature is mapped: TempC valid");
+    assert!((with_curve - 0.7).abs() < 0.03, "with the curve: {with_curve}");
+    assert!((without - 0.3).abs() < 0.03, "without the curve: {without}");
+}
