@@ -34,7 +34,9 @@ enum Cmd {
         output: Option<PathBuf>,
         /// Write one CSV row per sample here: t (s from the first sample, by the
         /// sample counter), roll, pitch, yaw (deg), rate_x..z (deg/s), bias_x..z
-        /// (deg/s), mode (0 fusion, 1 aided, 2 gyro only), temp (deg C).
+        /// (deg/s), mode (0 fusion, 1 aided, 2 gyro only), temp (deg C),
+        /// invalid (the fields not estimated, EST_AID's Invalid* bits: 0 all
+        /// valid; an invalid field is written as 0).
         /// At least one of --output, --csv and --mcap is required.
         #[arg(long, value_name = "EST.csv")]
         csv: Option<PathBuf>,

@@ -135,6 +135,7 @@ pub fn estimate_schema() -> String {
             "uint32 aid_status # the EST_AID status word: 2 bits per aid source of the default filter\n",
             "float32 aid_worst_ratio # the largest test ratio of the aid sources at the last update tick, as EST_AID's WorstRatio (0..655.35, saturating)\n",
             "gyrocomp/AidSources aid # what each aid source of the default filter did at the last update tick\n",
+            "uint8 invalid # the fields not estimated (a reduced-axis unit; 0 all valid), EST_AID's Invalid* bits: bit 0 rate.x and bias.x, 1 y, 2 z, 3 roll, 4 pitch, 5 yaw, 6 temp; an invalid field is 0\n",
             "{time}",
             "{s}MSG: gyrocomp/Vector3f\n",
             "float32 x\nfloat32 y\nfloat32 z\n",
@@ -294,9 +295,9 @@ fn tf_cdr(b: &mut Vec<u8>, head: &[u8], sec: i32, t_us: u64, q: [f64; 4]) {
 }
 
 /// Bytes of a `gyrocomp/msg/Estimate` in CDR, with the header.
-const ESTIMATE_LEN: usize = 4 + 92 + Aid::ALL.len();
+const ESTIMATE_LEN: usize = 4 + 92 + Aid::ALL.len() + 1;
 
-/// `gyrocomp/msg/Estimate` as CDR (108 bytes with the header).
+/// `gyrocomp/msg/Estimate` as CDR (109 bytes with the header).
 fn estimate_cdr(b: &mut Vec<u8>, sec: i32, e: &Estimate) {
     let mut m = [0u8; ESTIMATE_LEN];
     m[..4].copy_from_slice(&CDR_LE);
@@ -317,6 +318,7 @@ fn estimate_cdr(b: &mut Vec<u8>, sec: i32, e: &Estimate) {
     for (i, a) in Aid::ALL.into_iter().enumerate() {
         m[4 + 92 + i] = e.aid.code(a) as u8;
     }
+    m[ESTIMATE_LEN - 1] = e.invalid;
     b.extend_from_slice(&m);
 }
 
@@ -636,6 +638,7 @@ mod tests {
             ratio: 1.0,
             // zero_velocity fused, zero_rate refused; a ratio past WorstRatio's range
             aid: crate::estimator::mekf::AidWord { status: 0b1001, worst_ratio: 1e9 },
+            invalid: 0,
         }
     }
 
@@ -688,7 +691,7 @@ mod tests {
         let e = est();
         let mut b = Vec::new();
         estimate_cdr(&mut b, ros_sec(Topic::Estimate, e.t_us).unwrap(), &e);
-        assert_eq!(b.len(), 108);
+        assert_eq!(b.len(), 109);
         assert_eq!(b[..4], CDR_LE);
         let m = &b[4..];
         let u32at = |i: usize| u32::from_le_bytes(m[i..i + 4].try_into().unwrap());
@@ -704,6 +707,7 @@ mod tests {
         assert_eq!(on, ["suspect", "standstill"]);
         assert_eq!((u32at(84), f32at(88)), (9, 655.35));
         assert_eq!(m[92..104], [1, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]);
+        assert_eq!(m[104], 0, "all valid");
         // the schema declares these fields in this order
         let schema = estimate_schema();
         let names: Vec<String> = fields(&schema, None).into_iter().map(|(_, n)| n).collect();
@@ -724,6 +728,7 @@ mod tests {
             "aid_status",
             "aid_worst_ratio",
             "aid",
+            "invalid",
         ];
         assert_eq!(names, want);
         let flags = fields(&schema, Some("gyrocomp/Flags"));

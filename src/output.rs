@@ -8,7 +8,12 @@
 //! | ATTITUDE | Roll i16 0.01 deg | Pitch | Yaw | DataCnt |
 //! | GYRO_BIAS | BiasX i16 0.0005 deg/s | BiasY | BiasZ | DataCnt |
 //! | EST_STATUS | Mode (2 bits) + flags (14 bits) | TempC i16 0.01 C | DataCnt | ErrCnt u8, LostCnt u8 |
-//! | EST_AID | u32 (bytes 0-3): 16 two-bit fields `Aid<Name>`, source `i` of `Aid::ALL` at bits `2i..2i+1` (12 used, the rest 0) | | WorstRatio u16 0.01 | DataCnt |
+//! | EST_AID | u32 (bytes 0-3): 12 two-bit fields `Aid<Name>`, source `i` of `Aid::ALL` at bits `2i..2i+1`; bits 24-30 `Invalid<Field>` ([`crate::estimator::invalid`]), bit 31 0 | | WorstRatio u16 0.01 | DataCnt |
+//!
+//! A field the estimate marks invalid (a reduced-axis unit's roll, pitch, x
+//! and y rates and biases) is sent as raw `0x8000` ([`FILL`]: outside Roll's
+//! and Pitch's range) with its `Invalid*` bit set; the six-axis filters send
+//! every bit 0.
 //!
 //! Values outside a signal's range saturate (and set `RATE_SAT` for rates);
 //! `WorstRatio` saturates at 655.35, and a non-finite ratio is sent as that.
@@ -30,6 +35,10 @@ pub const RATIO_MAX: f64 = u16::MAX as f64 * RATIO_SCALE;
 pub const AID_MASK: u32 = ((1u64 << (2 * Aid::ALL.len())) - 1) as u32;
 /// The names of the 2-bit codes of `EST_AID`, as the DBC's `VAL_` gives them.
 pub const AID_CODES: [&str; 3] = ["not_applicable", "fused", "refused"];
+/// The raw value of a field marked invalid.
+pub const FILL: i16 = i16::MIN;
+/// Where `Estimate::invalid` sits in the `EST_AID` word.
+pub const INVALID_SHIFT: u32 = 24;
 /// Index of `EST_STATUS` in [`Frames`].
 pub const STATUS: usize = 3;
 /// Index of `EST_AID` in [`Frames`] (when sent).
@@ -111,11 +120,12 @@ pub fn ratio_sent(r: f64) -> f64 {
 }
 
 /// The payload of `EST_AID`: the status word (bits of no source cleared),
-/// `WorstRatio` and `DataCnt`.
+/// the invalid fields (bits 24-30), `WorstRatio` and `DataCnt`.
 #[inline]
-pub fn aid_payload(aid: &AidWord, cnt: u16) -> [u8; 8] {
+pub fn aid_payload(aid: &AidWord, invalid: u8, cnt: u16) -> [u8; 8] {
     let mut d = [0u8; 8];
-    d[0..4].copy_from_slice(&(aid.status & AID_MASK).to_le_bytes());
+    let word = (aid.status & AID_MASK) | u32::from(invalid & 0x7F) << INVALID_SHIFT;
+    d[0..4].copy_from_slice(&word.to_le_bytes());
     // within 0..=65535 after the clamp: the cast neither wraps nor saturates
     let r = (ratio_sent(aid.worst_ratio) / RATIO_SCALE).round() as u16;
     d[4..6].copy_from_slice(&r.to_le_bytes());
@@ -125,15 +135,18 @@ pub fn aid_payload(aid: &AidWord, cnt: u16) -> [u8; 8] {
 
 /// Encode one estimate. `extra_flags` are OR-ed into the status (daemon flags).
 pub fn encode(e: &Estimate, c: &StatusCounters, ids: &OutputConfig, extra_flags: u16) -> Frames {
-    let (rx, s0) = q16(e.rate[0], RATE_SCALE);
-    let (ry, s1) = q16(e.rate[1], RATE_SCALE);
-    let (rz, s2) = q16(e.rate[2], RATE_SCALE);
+    use crate::estimator::invalid as inv;
+    // an invalid field: the fill value, never saturated
+    let q = |v: f64, scale: f64, bit: u8| if e.invalid & bit != 0 { (FILL, false) } else { q16(v, scale) };
+    let (rx, s0) = q(e.rate[0], RATE_SCALE, inv::RATE_X);
+    let (ry, s1) = q(e.rate[1], RATE_SCALE, inv::RATE_Y);
+    let (rz, s2) = q(e.rate[2], RATE_SCALE, inv::RATE_Z);
     let mut fl = e.flags | extra_flags;
     if s0 || s1 || s2 {
         fl |= flags::RATE_SAT;
     }
-    let ang = [q16(e.roll, ANGLE_SCALE).0, q16(e.pitch, ANGLE_SCALE).0, q16(e.yaw, ANGLE_SCALE).0];
-    let bias = [q16(e.bias[0], BIAS_SCALE).0, q16(e.bias[1], BIAS_SCALE).0, q16(e.bias[2], BIAS_SCALE).0];
+    let ang = [q(e.roll, ANGLE_SCALE, inv::ROLL).0, q(e.pitch, ANGLE_SCALE, inv::PITCH).0, q(e.yaw, ANGLE_SCALE, inv::YAW).0];
+    let bias = [q(e.bias[0], BIAS_SCALE, inv::RATE_X).0, q(e.bias[1], BIAS_SCALE, inv::RATE_Y).0, q(e.bias[2], BIAS_SCALE, inv::RATE_Z).0];
     let mut st = [0u8; 8];
     let w0: u16 = (e.mode as u16 & 0x3) | ((fl & 0x3FFF) << 2);
     st[0..2].copy_from_slice(&w0.to_le_bytes());
@@ -147,7 +160,7 @@ pub fn encode(e: &Estimate, c: &StatusCounters, ids: &OutputConfig, extra_flags:
             OutFrame { id: ids.attitude_id, data: put3(ang, e.cnt) },
             OutFrame { id: ids.bias_id, data: put3(bias, e.cnt) },
             OutFrame { id: ids.status_id, data: st },
-            OutFrame { id: ids.aid_id, data: aid_payload(&e.aid, e.cnt) },
+            OutFrame { id: ids.aid_id, data: aid_payload(&e.aid, e.invalid, e.cnt) },
         ],
         n: if ids.aid_frame { 5 } else { 4 },
     }
@@ -167,6 +180,8 @@ pub struct Decoded {
     pub lost: u8,
     /// `EST_AID`: the status word and `WorstRatio` (None when not sent).
     pub aid: Option<AidWord>,
+    /// `EST_AID`'s `Invalid*` bits (0 when it is not sent).
+    pub invalid: u8,
 }
 
 /// Decode the frames of one estimate: the four of every sample, and
@@ -186,12 +201,16 @@ pub fn decode(frames: &[OutFrame]) -> Decoded {
         errors: st[6],
         lost: st[7],
         aid: frames.get(AID).map(|f| decode_aid(&f.data).0),
+        invalid: frames
+            .get(AID)
+            .map_or(0, |f| (u32::from_le_bytes([f.data[0], f.data[1], f.data[2], f.data[3]]) >> INVALID_SHIFT) as u8 & 0x7F),
     }
 }
 
-/// Decode an `EST_AID` payload: the status word and `WorstRatio`, and `DataCnt`.
+/// Decode an `EST_AID` payload: the status word (the sources' bits) and
+/// `WorstRatio`, and `DataCnt`.
 pub fn decode_aid(d: &[u8; 8]) -> (AidWord, u16) {
-    let status = u32::from_le_bytes([d[0], d[1], d[2], d[3]]);
+    let status = u32::from_le_bytes([d[0], d[1], d[2], d[3]]) & AID_MASK;
     let worst_ratio = u16::from_le_bytes([d[4], d[5]]) as f64 * RATIO_SCALE;
     (AidWord { status, worst_ratio }, u16::from_le_bytes([d[6], d[7]]))
 }
@@ -236,6 +255,31 @@ mod tests {
         }
         assert_eq!(ratio_sent(3.5), 3.5);
         assert!((RATIO_MAX - 655.35).abs() < 1e-9);
+    }
+
+    #[test]
+    fn invalid_fields_go_out_as_the_fill_value_with_their_bits() {
+        use crate::estimator::invalid;
+        let e = Estimate {
+            rate: [1.0, 2.0, 3.0],
+            bias: [0.1, 0.2, 0.3],
+            roll: 5.0,
+            pitch: 6.0,
+            yaw: 7.0,
+            invalid: invalid::REDUCED | invalid::TEMP,
+            ..est(0b01, 0.0)
+        };
+        let f = encode(&e, &StatusCounters::default(), &OutputConfig::default(), 0);
+        let d = decode(&f);
+        assert_eq!(d.invalid, invalid::REDUCED | invalid::TEMP);
+        assert_eq!(d.aid.map(|a| a.status), Some(0b01), "the sources' word unchanged");
+        assert_eq!(f[AID].data[3], 0b0101_1011);
+        let fill = FILL as f64;
+        assert_eq!((d.rate, d.bias[..2].to_vec()), ([fill * RATE_SCALE, fill * RATE_SCALE, 3.0], vec![fill * BIAS_SCALE; 2]));
+        assert_eq!(d.att, [fill * ANGLE_SCALE, fill * ANGLE_SCALE, 7.0]);
+        assert_eq!(d.flags & flags::RATE_SAT, 0, "a fill value is not a saturation");
+        // all valid: bits 24-31 are 0, as before
+        assert_eq!(aid_bytes(0xFFFF_FFFF, 0.0)[3], 0);
     }
 
     #[test]

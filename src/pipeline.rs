@@ -124,6 +124,9 @@ pub struct Report {
     /// Restarts from the prior after the filter's state went non-finite
     /// (flagged `RESYNC`; 0 with a config inside its ranges).
     pub nonfinite_restarts: u64,
+    /// The reduced-axis filter's windows and its yaw-rate bias and sigma
+    /// (deg/s) now (None with all six axes).
+    pub reduced: Option<(crate::estimator::reduced::ReducedCounters, f64, f64)>,
 }
 
 impl Report {
@@ -194,8 +197,16 @@ impl Report {
                 None => String::new(),
             };
         }
+        if let Some((c, b, sd)) = &self.reduced {
+            s += &format!(
+                "reduced axes: yaw-rate bias {b:.3} +- {sd:.3} deg/s, taught by {} standstill and {} straight-cruise windows of {} s (mode fusion on the sample that ends one); heading from the corrected yaw rate; roll, pitch and the x, y rates and biases not estimated (EST_AID Invalid* bits)\n",
+                c.standstill_windows,
+                c.cruise_windows,
+                crate::estimator::reduced::WINDOW_S
+            );
+        }
         if let Some(sp) = &self.speed {
-            let used = self.mekf.map_or(0.0, |c| c.speed_used_s);
+            let used = self.mekf.map(|c| c.speed_used_s).or(self.reduced.map(|r| r.0.speed_s)).unwrap_or(0.0);
             s += &format!(
                 "speed frames: decoded {}, dropped wrong_dlc {} out_of_range {} implausible {}; speed used {:.1} s\n",
                 sp.decoded, sp.wrong_dlc, sp.out_of_range, sp.implausible, used
@@ -361,6 +372,7 @@ impl Pipeline {
             span_s: self.any.then_some(span),
             time_backwards: self.backwards,
             nonfinite_restarts: self.estimator.nonfinite_restarts(),
+            reduced: self.estimator.reduced().map(|r| (r.counters, r.bias(), r.bias_sigma())),
         }
     }
 

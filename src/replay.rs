@@ -137,13 +137,16 @@ impl<W: Write, C: Write> Sink for ReplaySink<'_, W, C> {
     }
 }
 
-pub const CSV_HEADER: &str = "t,roll,pitch,yaw,rate_x,rate_y,rate_z,bias_x,bias_y,bias_z,mode,temp\n";
+/// The CSV's columns. `invalid`: the fields not estimated, the bits of
+/// `EST_AID`'s `Invalid*` ([`crate::estimator::invalid`]; 0 all valid); an
+/// invalid field is written as 0.
+pub const CSV_HEADER: &str = "t,roll,pitch,yaw,rate_x,rate_y,rate_z,bias_x,bias_y,bias_z,mode,temp,invalid\n";
 
 pub fn write_csv_row<C: Write>(c: &mut C, e: &Estimate) -> io::Result<()> {
     writeln!(
         c,
-        "{:.6},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{:.6},{:.6},{},{:.3}",
-        e.t, e.roll, e.pitch, e.yaw, e.rate[0], e.rate[1], e.rate[2], e.bias[0], e.bias[1], e.bias[2], e.mode, e.temp
+        "{:.6},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{:.6},{:.6},{},{:.3},{}",
+        e.t, e.roll, e.pitch, e.yaw, e.rate[0], e.rate[1], e.rate[2], e.bias[0], e.bias[1], e.bias[2], e.mode, e.temp, e.invalid
     )
 }
 

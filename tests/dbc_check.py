@@ -19,6 +19,10 @@ import sys
 import cantools
 
 FOUR = ["GYRO_RATE_CORR", "ATTITUDE", "GYRO_BIAS", "EST_STATUS"]
+# EST_AID bits 24-30: the fields not estimated (the CSV's `invalid`, bit i at 24 + i)
+INVALID = ["InvalidRateX", "InvalidRateY", "InvalidRateZ", "InvalidRoll", "InvalidPitch", "InvalidYaw", "InvalidTemp"]
+# which Invalid bit covers a signal; an invalid one is sent as raw 0x8000
+COVERS = {"RateX": 0, "BiasX": 0, "RateY": 1, "BiasY": 1, "RateZ": 2, "BiasZ": 2, "Roll": 3, "Pitch": 4, "Yaw": 5}
 
 
 def camel(name):
@@ -30,7 +34,7 @@ def check_aid_layout(msg, sources):
     """The DBC's EST_AID: one 2-bit signal per source at bits 2i, in the
     library's order, WorstRatio and DataCnt, nothing else."""
     sigs = {s.name: s for s in msg.signals}
-    want = [camel(n) for n in sources] + ["WorstRatio", "DataCnt"]
+    want = [camel(n) for n in sources] + INVALID + ["WorstRatio", "DataCnt"]
     if sorted(sigs) != sorted(want):
         raise SystemExit(f"EST_AID signals {sorted(sigs)}, want {sorted(want)}")
     for i, n in enumerate(sources):
@@ -40,6 +44,10 @@ def check_aid_layout(msg, sources):
         choices = {int(k): str(v) for k, v in (s.choices or {}).items()}
         if choices != {0: "not_applicable", 1: "fused", 2: "refused"}:
             raise SystemExit(f"{s.name}: value names {choices}")
+    for i, n in enumerate(INVALID):
+        s = sigs[n]
+        if (s.start, s.length, s.is_signed) != (24 + i, 1, False):
+            raise SystemExit(f"{n}: start {s.start} length {s.length}, want bit {24 + i}, 1 bit")
     w = sigs["WorstRatio"]
     if (w.start, w.length, w.scale, w.is_signed) != (32, 16, 0.01, False):
         raise SystemExit(f"WorstRatio: start {w.start} length {w.length} scale {w.scale}")
@@ -80,6 +88,7 @@ def main():
     seen = {"not_applicable": 0, "fused": 0, "refused": 0}
     for k, row in enumerate(rows):
         cnts = set()
+        invalid = int(row.get("invalid", 0))
         for j, name in enumerate(names):
             fid, data = frames[per * k + j]
             msg = db.get_message_by_frame_id(fid)
@@ -89,6 +98,8 @@ def main():
             for s, v in sig.items():
                 if s in col:
                     ref = float(row[col[s]])
+                    if s in COVERS and invalid >> COVERS[s] & 1:
+                        ref = -32768 * msg.get_signal_by_name(s).scale  # the fill value
                     if s == "Yaw" and abs(v - ref) > 359:
                         ref = v  # +-180 wrap rounds either way
                     if abs(v - ref) > tol[s]:
@@ -99,8 +110,12 @@ def main():
                     raise SystemExit(f"sample {k}: Mode {sig['Mode']} vs {row['mode']}")
                 checked += 1
             if name == "EST_AID":
-                if data[3] != 0:
-                    raise SystemExit(f"sample {k}: EST_AID bits 24-31 are {data[3]:#x}, not 0")
+                if data[3] != invalid:
+                    raise SystemExit(f"sample {k}: EST_AID bits 24-31 are {data[3]:#x}, the CSV's invalid {invalid:#x}")
+                for i, n in enumerate(INVALID):
+                    if sig[n] != invalid >> i & 1:
+                        raise SystemExit(f"sample {k}: {n} decoded {sig[n]} vs the CSV's invalid {invalid:#x}")
+                    checked += 1
                 if aid_rows is None:
                     continue
                 lib = aid_rows[k]

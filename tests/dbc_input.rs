@@ -148,7 +148,7 @@ fn toyota_kinematics_on_the_comma2k19_recording_decodes_as_cantools() {
     let mut text = String::new();
     use std::io::Read;
     flate2::read::GzDecoder::new(std::fs::File::open(dir.join("can.log.gz")).unwrap()).read_to_string(&mut text).unwrap();
-    // the KINEMATICS plan, reduced axes and all (check-config refuses it for the estimator)
+    // the KINEMATICS plan, reduced axes and all
     let toml = std::fs::read_to_string(Path::new(ROOT).join("config/toyota-kinematics.toml")).unwrap();
     let dbc = std::fs::read_to_string(Path::new(ROOT).join("config/toyota-kinematics.dbc")).unwrap();
     let cfg = Config::parse(&toml, "toyota-kinematics.toml").unwrap();
@@ -204,10 +204,28 @@ fn check_config_prints_the_mapping_and_refuses_what_cannot_run() {
     std::fs::write(d.path().join("printed.toml"), &out).unwrap();
     let (ok, again, err) = check_config(&d.path().join("printed.toml"));
     assert!(ok && again == out, "{err}\n{again}");
-    // reduced axes: refused, saying why
-    let (ok, _, err) = check_config(&Path::new(ROOT).join("config/toyota-kinematics.toml"));
-    assert!(!ok && err.contains("gyro_x, gyro_y, accel_z not mapped") && err.contains("reduced-axis estimation"), "{err}");
-    assert!(err.contains("toyota-kinematics.toml") && err.contains("input.signals"), "{err}");
+    // reduced axes: accepted, the mapping printed and what is not estimated said
+    let toyota = Path::new(ROOT).join("config/toyota-kinematics.toml");
+    let (ok, out, err) = check_config(&toyota);
+    assert!(ok, "{err}");
+    for want in
+        ["#   gyro_z = -KINEMATICS.YAW_RATE: bit 1 size 10 Motorola", "# reduced axes (gyro_x, gyro_y, accel_z not mapped)", "roll, pitch"]
+    {
+        assert!(out.contains(want), "{want} missing:\n{out}");
+    }
+    // without the yaw rate or a horizontal axis, or without EST_AID: refused, saying why
+    let base = std::fs::read_to_string(&toyota)
+        .unwrap()
+        .replace("dbc = \"toyota-kinematics.dbc\"", &format!("dbc = \"{ROOT}/config/toyota-kinematics.dbc\""));
+    for (edit, key, want) in [
+        (base.replace("accel_y = \"KINEMATICS.ACCEL_Y\"\n", ""), "input.signals", "accel_y not mapped: a unit without all six axes needs"),
+        (base.replace("gyro_z = \"-KINEMATICS.YAW_RATE\"", "gyro_x = \"-KINEMATICS.YAW_RATE\""), "input.signals", "gyro_z not mapped"),
+        (format!("{base}[output]\naid_frame = false\n"), "output.aid_frame", "needs aid_frame = true"),
+    ] {
+        std::fs::write(d.path().join("reduced.toml"), edit).unwrap();
+        let (ok, _, err) = check_config(&d.path().join("reduced.toml"));
+        assert!(!ok && err.contains(want) && err.contains(key) && err.contains("reduced.toml"), "{want}: {err}");
+    }
     // a signal the DBC lacks: the key, its line, the config and the DBC named
     let text = std::fs::read_to_string(Path::new(ROOT).join("config/mm7p10.toml")).unwrap().replace("TX2.AX\"", "TX2.AXX\"");
     std::fs::write(d.path().join("bad.toml"), text.replace("dbc = \"mm7p10.dbc\"", &format!("dbc = \"{ROOT}/config/mm7p10.dbc\"")))

@@ -105,7 +105,7 @@ def main():
             fail("no gyrocomp/msg/Estimate schema")
         top = fields(est_text)
         if top != ["timestamp", "t", "cnt", "roll", "pitch", "yaw", "rate", "bias", "temp", "mode",
-                   "accel_ratio", "flags", "flag", "aid_status", "aid_worst_ratio", "aid"]:
+                   "accel_ratio", "flags", "flag", "aid_status", "aid_worst_ratio", "aid", "invalid"]:
             fail(f"gyrocomp/msg/Estimate fields {top}")
         # the flags with their bit (from the schema's comments), the aid
         # sources in the schema's order: source i at bits 2i..2i+1
@@ -154,7 +154,7 @@ def main():
                     fail(f"{t}: len {d['len']} with {len(d['data'])} bytes, message {len(m.data)} bytes")
             elif schema.name == "gyrocomp/msg/Estimate":
                 ts = d["timestamp"]
-                if len(m.data) != 4 + 92 + len(aid_names):
+                if len(m.data) != 4 + 92 + len(aid_names) + 1:
                     fail(f"{t}: {len(m.data)} bytes")
                 if list(d) != top:
                     fail(f"{t}: fields {list(d)}")
@@ -171,6 +171,8 @@ def main():
                     fail(f"{t}: aid_status {d['aid_status']} but the sources say {word} at {m.log_time}")
                 if not 0.0 <= d["aid_worst_ratio"] <= 655.36:
                     fail(f"{t}: aid_worst_ratio {d['aid_worst_ratio']} at {m.log_time}")
+                if not 0 <= d["invalid"] < 128:
+                    fail(f"{t}: invalid {d['invalid']} at {m.log_time}")
                 aid_fused += any(v == 1 for v in aid.values())
                 aid_refused += any(v == 2 for v in aid.values())
             else:

@@ -43,7 +43,7 @@ fn replay_is_deterministic_and_learns_the_bias() {
     for (i, want) in [0.3, -0.2, 0.25].iter().enumerate() {
         assert!((last[7 + i] - want).abs() < 0.03, "bias axis {i}: {} vs {want}", last[7 + i]);
     }
-    assert!(csv.starts_with("t,roll,pitch,yaw,rate_x,rate_y,rate_z,bias_x,bias_y,bias_z,mode,temp\n"));
+    assert!(csv.starts_with("t,roll,pitch,yaw,rate_x,rate_y,rate_z,bias_x,bias_y,bias_z,mode,temp,invalid\n"));
 }
 
 #[test]

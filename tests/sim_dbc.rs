@@ -140,10 +140,37 @@ fn the_adis_only_commands_refuse_a_dbc_config() {
 }
 
 #[test]
-fn a_reduced_or_adis_config_is_refused() {
+fn an_adis_config_is_refused_a_reduced_one_simulates() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("x");
-    for (c, want) in [("toyota-kinematics.toml", "reduced-axis estimation"), ("gyrocomp.toml", "not format = \"dbc\"")] {
+    // the car's own yaw-rate sensor: its frames, and its replay marks what it cannot give
+    let o = Command::new(common::bin())
+        .args(["simulate", "--scenario", "static", "--duration", "6", "--out", out.to_str().unwrap(), "--input-dbc"])
+        .arg(format!("{ROOT}/config/toyota-kinematics.toml"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = out.join("est.csv");
+    let o = Command::new(common::bin())
+        .args(["replay", "--config"])
+        .arg(out.join("config.toml"))
+        .arg("--input")
+        .arg(out.join("imu.log"))
+        .arg("--csv")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let last = text.lines().last().unwrap();
+    // roll and pitch 0 (invalid), mode 0 or 2, invalid = rate x, y, roll, pitch, temp
+    assert!(last.starts_with(|c: char| c.is_ascii_digit()) && last.ends_with(",91"), "{last}");
+    let f: Vec<f64> = last.split(',').map(|v| v.parse().unwrap()).collect();
+    assert_eq!((f[1], f[2], f[4], f[5]), (0.0, 0.0, 0.0, 0.0), "{last}");
+    std::fs::remove_dir_all(&out).unwrap();
+    // the ADIS config: refused
+    {
+        let (c, want) = ("gyrocomp.toml", "not format = \"dbc\"");
         let o = Command::new(common::bin())
             .args([
                 "simulate",

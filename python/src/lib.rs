@@ -691,6 +691,8 @@ struct ReplayCols {
     temp: Vec<f64>,
     flags: Vec<u16>,
     t_us: Vec<u64>,
+    /// The fields not estimated (the CSV's `invalid`).
+    invalid: Vec<u8>,
 }
 
 impl Sink for ReplayCols {
@@ -708,6 +710,7 @@ impl Sink for ReplayCols {
         self.temp.push(e.temp);
         self.flags.push(e.flags);
         self.t_us.push(e.t_us);
+        self.invalid.push(e.invalid);
     }
 }
 
@@ -750,6 +753,7 @@ impl ReplayCols {
         d.set_item("temp", PyArray1::from_vec(py, self.temp))?;
         d.set_item("flags", PyArray1::from_vec(py, self.flags))?;
         d.set_item("t_us", PyArray1::from_vec(py, self.t_us))?;
+        d.set_item("invalid", PyArray1::from_vec(py, self.invalid))?;
         Ok(d)
     }
 }

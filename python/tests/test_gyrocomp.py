@@ -15,7 +15,8 @@ from conftest import run, ticks_during
 
 # the CSV's printed decimals per column (src/replay.rs write_csv_row)
 DECIMALS = {"t": 6, "roll": 4, "pitch": 4, "yaw": 4, "rate_x": 4, "rate_y": 4, "rate_z": 4,
-            "bias_x": 6, "bias_y": 6, "bias_z": 6, "mode": None, "temp": 3}
+            "bias_x": 6, "bias_y": 6, "bias_z": 6, "mode": None, "temp": 3,
+            "invalid": None}
 
 
 def cli_csv(cli, log, tmp_path, config=None):

@@ -69,6 +69,14 @@ impl Config {
             for l in &plan.lines {
                 out += &format!("#   {l}\n");
             }
+            if let Some(r) = crate::estimator::reduced_params(self) {
+                out += &format!(
+                    "# reduced axes ({} not mapped): the yaw-rate bias (learned at standstills{}{}) and heading; roll, pitch and the x, y rates and biases are not estimated (EST_AID Invalid* bits; docs/estimator.md#reduced-axes)\n",
+                    plan.missing_motion().join(", "),
+                    if r.speed_aided { " and straight cruises, by the wheel speeds" } else { " read from the quiet yaw rate and ax, ay" },
+                    if r.temp_mapped && self.thermal.enabled { ", moved by the thermal curve" } else { ", no thermal curve: no temperature mapped" },
+                );
+            }
         }
         let mut section = "";
         for line in text.lines() {

@@ -97,9 +97,10 @@ impl Config {
 
     /// `[input] format = "dbc"`: read `input.dbc` (as it stands: `load` has
     /// made it relative to the config file), resolve the mapping into the
-    /// decode plan and keep it; refuse a mapping without all six motion axes
-    /// (reduced-axis estimation is not supported yet) and a message whose ID
-    /// is one of gyrocomp's outputs.
+    /// decode plan and keep it; refuse a mapping without the yaw rate and
+    /// ax, ay (what the reduced-axis estimator needs when an axis is
+    /// missing), a reduced mapping without `EST_AID` (its validity bits), and
+    /// a message whose ID is one of gyrocomp's outputs.
     pub fn load_input_dbc(&mut self) -> Result<(), (String, String)> {
         if self.input.format.is_adis() {
             return Ok(());
@@ -114,11 +115,21 @@ impl Config {
         })?;
         let plan = crate::dbcin::DbcPlan::build(&self.input, &text, path, self.thermal.t0)?;
         let missing = plan.missing_motion();
-        if !missing.is_empty() {
+        let needed: Vec<&str> = missing.iter().copied().filter(|k| ["gyro_z", "accel_x", "accel_y"].contains(k)).collect();
+        if !needed.is_empty() {
             return Err((
                 "input.signals".into(),
                 format!(
-                    "{} not mapped: reduced-axis estimation (a sensor without all three gyro and all three accelerometer axes) is not yet supported",
+                    "{} not mapped: a unit without all six axes needs at least the yaw rate (gyro_z) and the horizontal accelerations (accel_x, accel_y) for the reduced-axis estimator (docs/estimator.md#reduced-axes)",
+                    needed.join(", ")
+                ),
+            ));
+        }
+        if !missing.is_empty() && !self.output.aid_frame {
+            return Err((
+                "output.aid_frame".into(),
+                format!(
+                    "{} not mapped, so some outputs are invalid, and which ones EST_AID says (its Invalid* bits): a reduced-axis unit needs aid_frame = true",
                     missing.join(", ")
                 ),
             ));

@@ -18,6 +18,8 @@
 //! - [`paper`] (`paper`, `startup_thermal`, `startup_average`): the published
 //!   method, faithful, on the 6-state Euler-angle EKF of [`ekf`], and its
 //!   comparison cases;
+//! - [`reduced`]: a unit without all six axes (a car's yaw rate, ax and
+//!   ay): the yaw-rate bias and heading only, the rest marked invalid;
 //! - [`rest`]: the standstill detector; [`switching`]: the paper's
 //!   bands and acceleration-change criterion (the policy on top of both).
 
@@ -26,6 +28,7 @@ pub mod hypotheses;
 pub mod mekf;
 pub mod paper;
 pub mod quat;
+pub mod reduced;
 pub mod rest;
 pub mod switching;
 
@@ -36,6 +39,7 @@ use crate::thermal::{SlopeLearner, SlopeParams, SlopeState, Thermal};
 use hypotheses::{BankEnd, MekfBank};
 use mekf::{AidWord, MagUse, Mekf, MekfCounters, MekfParams, G};
 use paper::Paper;
+use reduced::{Reduced, ReducedParams};
 use rest::RestParams;
 
 const D2R: f64 = std::f64::consts::PI / 180.0;
@@ -80,6 +84,30 @@ pub mod flags {
     // The status word holds 14 flags (bits 2-15 of EST_STATUS): all taken.
 }
 
+/// Which published fields are not estimated (`Estimate::invalid`; sent in
+/// `EST_AID` bits 24-30, bit `i` here at bit `24 + i`). 0 (all valid) from
+/// the six-axis filters; a reduced-axis unit (`reduced`) sets the axes it
+/// cannot give. An invalid field is 0 in the estimate and the CSV, and raw
+/// `0x8000` in its output frame.
+pub mod invalid {
+    /// RateX and BiasX (no x gyro).
+    pub const RATE_X: u8 = 1 << 0;
+    /// RateY and BiasY (no y gyro).
+    pub const RATE_Y: u8 = 1 << 1;
+    /// RateZ and BiasZ (no z gyro; never in use: every mapping has one).
+    pub const RATE_Z: u8 = 1 << 2;
+    /// Roll: not observable without a vertical axis and a roll rate.
+    pub const ROLL: u8 = 1 << 3;
+    /// Pitch: likewise.
+    pub const PITCH: u8 = 1 << 4;
+    /// Yaw (never in use: heading is integrated from the yaw rate).
+    pub const YAW: u8 = 1 << 5;
+    /// TempC: no temperature mapped (the reported value is `thermal.t0`).
+    pub const TEMP: u8 = 1 << 6;
+    /// What a unit with the yaw rate, ax and ay only cannot give.
+    pub const REDUCED: u8 = RATE_X | RATE_Y | ROLL | PITCH;
+}
+
 /// What the estimator says about one sample. Angles deg, rates deg/s, all in
 /// the vehicle frame.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -103,6 +131,8 @@ pub struct Estimate {
     /// What the default filter's aid sources did at its last update tick
     /// (`mekf::aid`; all not applicable in the paper's modes): `EST_AID`.
     pub aid: AidWord,
+    /// The fields not estimated ([`invalid`]; 0: all valid).
+    pub invalid: u8,
 }
 
 /// g0: the mean |f| (g) over the first `g0_window_s` seconds, and over the
@@ -182,6 +212,8 @@ enum Filter {
     Paper(Paper),
     /// The default filter with its power-on speed hypotheses.
     Mekf(Box<MekfBank>),
+    /// A unit without all six axes: the yaw-rate bias and heading.
+    Reduced(Reduced),
 }
 
 #[derive(Clone, Debug)]
@@ -227,6 +259,8 @@ struct FilterOut {
     finite: bool,
     /// What the default filter's aid sources did at its last tick.
     aid: AidWord,
+    /// The fields not estimated.
+    invalid: u8,
 }
 
 /// The power-on speed hypotheses' outcome (`hypotheses`), for the summary
@@ -307,14 +341,29 @@ pub fn mekf_params(cfg: &Config) -> MekfParams {
     }
 }
 
+/// The reduced-axis filter's settings, when the DBC mapping lacks a motion
+/// axis (None: all six mapped, or the ADIS input).
+pub fn reduced_params(cfg: &Config) -> Option<ReducedParams> {
+    let plan = cfg.input.plan.0.as_ref().filter(|p| !cfg.input.format.is_adis() && !p.missing_motion().is_empty())?;
+    Some(ReducedParams {
+        q_bias: cfg.ekf.bias_walk.powi(2),
+        rest_sigma: cfg.mekf.zru_sigma_dps.max(1e-4),
+        init_sigma: cfg.init_bias_sigma(),
+        speed_aided: cfg.speed.enabled(),
+        temp_mapped: plan.channels[6].is_some(),
+    })
+}
+
 impl Estimator {
     pub fn new(cfg: &Config) -> Estimator {
         let p = cfg.profile();
         let e = &cfg.estimator;
         let switching = Switching::new(&cfg.switching, p.rate_hz);
-        let filter = match e.mode {
-            Mode::Mekf => Filter::Mekf(Box::new(MekfBank::new(Mekf::new(mekf_params(cfg), switching)))),
-            _ => {
+        let reduced = reduced_params(cfg);
+        let filter = match (reduced, e.mode) {
+            (Some(r), _) => Filter::Reduced(Reduced::new(r)),
+            (None, Mode::Mekf) => Filter::Mekf(Box::new(MekfBank::new(Mekf::new(mekf_params(cfg), switching)))),
+            (None, _) => {
                 let use_mag = p.magnetometer && !matches!(e.use_magnetometer, crate::config::AutoBool::Bool(false));
                 Filter::Paper(Paper::new(cfg, switching, use_mag))
             }
@@ -327,7 +376,8 @@ impl Estimator {
             g0_window: e.g0_window_s,
             warmup: e.warmup_s,
             mount: r,
-            thermal_on: cfg.thermal.enabled && e.mode != Mode::StartupAverage,
+            // a reduced unit: the curve only with a temperature mapped
+            thermal_on: cfg.thermal.enabled && e.mode != Mode::StartupAverage && reduced.is_none_or(|r| r.temp_mapped),
             thermal: Thermal::new(&cfg.thermal),
             thermal_base: Thermal::new(&cfg.thermal),
             slope: (cfg.thermal.learn && cfg.thermal.enabled).then(|| {
@@ -368,7 +418,7 @@ impl Estimator {
                 b.filter_mut().set_vehicle_axes(yaw_deg);
                 true
             }
-            Filter::Paper(_) => false,
+            Filter::Paper(_) | Filter::Reduced(_) => false,
         }
     }
 
@@ -385,6 +435,9 @@ impl Estimator {
                 let s = m.bias_sigma();
                 Learned { bias, bias_sigma: [s[0] * R2D, s[1] * R2D, s[2] * R2D], temp }
             }),
+            Filter::Reduced(r) => {
+                r.known().then(|| Learned { bias: [0.0, 0.0, r.bias()], bias_sigma: [0.0, 0.0, r.bias_sigma()], temp: self.temp_prev })
+            }
         };
         l.or(self.prior)
     }
@@ -424,7 +477,7 @@ impl Estimator {
     pub fn mekf_counters(&self) -> Option<MekfCounters> {
         match &self.filter {
             Filter::Mekf(b) => Some(b.filter().counters()),
-            Filter::Paper(_) => None,
+            Filter::Paper(_) | Filter::Reduced(_) => None,
         }
     }
 
@@ -432,7 +485,7 @@ impl Estimator {
     pub fn magnetometer(&self) -> Option<bool> {
         match &self.filter {
             Filter::Mekf(b) => b.filter().magnetometer(),
-            Filter::Paper(_) => None,
+            Filter::Paper(_) | Filter::Reduced(_) => None,
         }
     }
 
@@ -440,7 +493,7 @@ impl Estimator {
     pub fn mekf(&self) -> Option<&Mekf> {
         match &self.filter {
             Filter::Mekf(b) => Some(b.filter()),
-            Filter::Paper(_) => None,
+            Filter::Paper(_) | Filter::Reduced(_) => None,
         }
     }
 
@@ -449,7 +502,7 @@ impl Estimator {
     pub fn power_on_speed(&self) -> Option<PowerOnSpeed> {
         match &self.filter {
             Filter::Mekf(b) => b.power_on(),
-            Filter::Paper(_) => None,
+            Filter::Paper(_) | Filter::Reduced(_) => None,
         }
     }
 
@@ -457,7 +510,15 @@ impl Estimator {
     pub fn paper(&self) -> Option<&Paper> {
         match &self.filter {
             Filter::Paper(p) => Some(p),
-            Filter::Mekf(_) => None,
+            Filter::Mekf(_) | Filter::Reduced(_) => None,
+        }
+    }
+
+    /// The reduced-axis filter (None with all six axes).
+    pub fn reduced(&self) -> Option<&Reduced> {
+        match &self.filter {
+            Filter::Reduced(r) => Some(r),
+            _ => None,
         }
     }
 
@@ -465,8 +526,10 @@ impl Estimator {
     /// while it is fresh, None when there is none (not configured, stale);
     /// `new` when a frame arrived since the previous sample.
     pub fn set_speed(&mut self, v: Option<f64>, new: bool) {
-        if let Filter::Mekf(b) = &mut self.filter {
-            b.filter_mut().set_speed(v, new);
+        match &mut self.filter {
+            Filter::Mekf(b) => b.filter_mut().set_speed(v, new),
+            Filter::Reduced(r) => r.set_speed(v, new),
+            Filter::Paper(_) => {}
         }
     }
 
@@ -492,6 +555,7 @@ impl Estimator {
                 let sig = sigma.map_or([self.init_bias_sigma * D2R; 3], |v| v.map(|x| (x * D2R).max(1e-4 * D2R)));
                 b.start(&s.accel, &s.magn, bias.map(|b| b * D2R), sig, sigma.is_some());
             }
+            Filter::Reduced(r) => r.start(bias[2], sigma.map(|s| s[2])),
         }
         self.temp_prev = s.temp;
         self.started = true;
@@ -518,7 +582,7 @@ impl Estimator {
         }
         self.learn_slope(out.slope_point, t);
         let (att, bias) = (out.att, out.bias);
-        let est = Estimate {
+        let mut est = Estimate {
             cnt: s.cnt,
             t_us: s.t_us,
             t,
@@ -532,7 +596,9 @@ impl Estimator {
             flags: fl,
             ratio: out.ratio,
             aid: out.aid,
+            invalid: 0,
         };
+        mark_invalid(&mut est, out.invalid);
         if out.finite && est.is_finite() {
             est
         } else {
@@ -607,6 +673,25 @@ impl Estimator {
                     slope_point,
                     finite: p.state_is_finite(),
                     aid: AidWord::default(),
+                    invalid: 0,
+                }
+            }
+            Filter::Reduced(r) => {
+                if resync {
+                    r.resync();
+                }
+                let (mode, fl) = r.step(inp);
+                let invalid = invalid::REDUCED | if r.params().temp_mapped { 0 } else { invalid::TEMP };
+                FilterOut {
+                    mode,
+                    flags: fl,
+                    ratio: quat::norm(&inp.accel) / inp.g0,
+                    att: [0.0, 0.0, r.yaw() * D2R],
+                    bias: [0.0, 0.0, r.bias()],
+                    slope_point: None,
+                    finite: r.is_finite(),
+                    aid: AidWord::default(),
+                    invalid,
                 }
             }
             Filter::Mekf(bank) => {
@@ -617,7 +702,7 @@ impl Estimator {
                 let b = m.bias();
                 let slope_point = m.take_rest_point();
                 let bias = [b[0] * R2D, b[1] * R2D, b[2] * R2D];
-                FilterOut { mode, flags: fl, ratio, att: m.euler(), bias, slope_point, finite: m.started(), aid: m.aid_word() }
+                FilterOut { mode, flags: fl, ratio, att: m.euler(), bias, slope_point, finite: m.started(), aid: m.aid_word(), invalid: 0 }
             }
         }
     }
@@ -651,10 +736,11 @@ impl Estimator {
         let (att, bias) = match &self.filter {
             Filter::Paper(p) => (p.attitude(), p.bias_deg()),
             Filter::Mekf(b) => (b.filter().euler(), b.filter().bias().map(|b| b * R2D)),
+            Filter::Reduced(r) => ([0.0, 0.0, r.yaw() * D2R], [0.0, 0.0, r.bias()]),
         };
         let f = |v: f64| if v.is_finite() { v } else { 0.0 };
         let bias = bias.map(f);
-        Estimate {
+        let mut out = Estimate {
             roll: f(att[0] * R2D),
             pitch: f(att[1] * R2D),
             yaw: f(att[2] * R2D),
@@ -664,12 +750,31 @@ impl Estimator {
             ratio: f(est.ratio),
             flags: est.flags | flags::RESYNC,
             ..est
-        }
+        };
+        mark_invalid(&mut out, est.invalid);
+        out
     }
 
     /// Restarts from the prior after a non-finite state since power-on.
     pub fn nonfinite_restarts(&self) -> u64 {
         self.nonfinite_restarts
+    }
+}
+
+/// The fields `invalid` names set to their fill value, 0 (the output frames
+/// send them as raw `0x8000`), and the word kept in the estimate.
+fn mark_invalid(e: &mut Estimate, invalid: u8) {
+    e.invalid = invalid;
+    for (i, bit) in [invalid::RATE_X, invalid::RATE_Y, invalid::RATE_Z].into_iter().enumerate() {
+        if invalid & bit != 0 {
+            e.rate[i] = 0.0;
+            e.bias[i] = 0.0;
+        }
+    }
+    for (v, bit) in [(&mut e.roll, invalid::ROLL), (&mut e.pitch, invalid::PITCH), (&mut e.yaw, invalid::YAW)] {
+        if invalid & bit != 0 {
+            *v = 0.0;
+        }
     }
 }
 
