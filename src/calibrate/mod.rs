@@ -115,8 +115,10 @@ use std::path::{Path, PathBuf};
 
 /// Bin length, seconds.
 pub const BIN_S: f64 = 1.0;
-/// Shortest usable run, seconds of data.
-pub const MIN_RUN_S: f64 = 120.0;
+/// A gap between two bins longer than this (s) is a time jump: the run is
+/// read as separate stretches of one power cycle (the static check's local
+/// median is taken within a stretch; the walk spans the jump).
+pub const JUMP_S: f64 = MEDIAN_HALF as f64 * BIN_S;
 /// Largest fraction of bad lines / checksum failures before a log is refused.
 pub const MAX_BAD_FRACTION: f64 = 0.01;
 /// A bin with fewer than this fraction of the run's median samples per bin decides nothing.
@@ -138,8 +140,12 @@ pub const TRANSIENT_Z: f64 = 5.0;
 pub const CONSISTENT_Z: f64 = 3.0;
 /// Cut = this many time constants.
 pub const CUT_TAUS: f64 = 5.0;
-/// A run with fewer bins than this left for the fit is left out.
-pub const MIN_FIT_BINS: usize = 30;
+/// A run with fewer static seconds than this is refused (when read) or left
+/// out (after the static check and the warm-up cut). Three 1-s bins are the
+/// fewest that tell anything beyond the run's own constant and give the
+/// static check's local median a window; a few seconds' weak information is
+/// what the interval says, not a reason to refuse them.
+pub const MIN_FIT_BINS: usize = 3;
 /// Warn when the temperature range covered is below this, deg C.
 pub const MIN_RANGE_C: f64 = 10.0;
 /// Static check thresholds.
@@ -172,6 +178,9 @@ pub enum CalError {
     Input { path: String, msg: String },
     #[error("{} input log(s) refused:\n{}", .0.len(), .0.iter().map(|e| format!("  {e}")).collect::<Vec<_>>().join("\n"))]
     Inputs(Vec<CalError>),
+    /// An input error already naming its file and line (`file:line: ...`).
+    #[error("{0}")]
+    Located(String),
     #[error("fit: {0}")]
     Fit(String),
     #[error("cannot write {path}: {msg}")]
@@ -238,6 +247,9 @@ pub struct RunReport {
     pub is_static: bool,
     /// Bins with too few samples to count (step 2).
     pub short_bins: usize,
+    /// The run's stretches (s since its first sample, start and end): more
+    /// than one when it was recorded in bursts with time jumps between them.
+    pub stretches: Vec<(f64, f64)>,
 }
 
 /// How the runs' turn-on levels enter one axis's fit (step 7).
@@ -282,6 +294,9 @@ pub struct AxisFit {
     /// Estimated white noise of a 1-s mean, deg/s, and bias random walk, deg/s/sqrt(s).
     pub white: f64,
     pub walk: f64,
+    /// With runs read as stretches: the walk's 95 % upper bound, where the
+    /// interval is also taken (NaN otherwise), deg/s/sqrt(s).
+    pub walk_upper: f64,
 }
 
 /// A calibration: the curve, per-run reports, warnings, and the data behind

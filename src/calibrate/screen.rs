@@ -28,6 +28,10 @@ pub(crate) fn full_bins(bins: &[Bin]) -> Vec<bool> {
     bins.iter().map(|b| b.n as f64 >= MIN_BIN_FRACTION * med).collect()
 }
 
+fn has_accel(b: &Bin) -> bool {
+    b.accel.iter().all(|v| v.is_finite())
+}
+
 /// Static check of one run over its full bins: the keep mask (false for
 /// moving bins, their margin, and bins that are not full); fills the
 /// report's static fields.
@@ -38,6 +42,13 @@ pub(crate) fn static_check(bins: &[Bin], full: &[bool], rep: &mut RunReport) -> 
     let n = fb.len();
     let mut moving = vec![false; n];
     let mut win = Vec::with_capacity(2 * MEDIAN_HALF + 1);
+    // the stretch of each full bin (first, one past the last): the window
+    // stays within it, never across a time jump
+    let owned: Vec<Bin> = fb.iter().map(|b| **b).collect();
+    let mut stretch = vec![(0, 0); n];
+    for (a, b) in super::read::stretches(&owned) {
+        stretch[a..b].iter_mut().for_each(|s| *s = (a, b));
+    }
     for i in 0..3 {
         let mut dev = vec![0.0; n];
         for j in 0..n {
@@ -45,7 +56,8 @@ pub(crate) fn static_check(bins: &[Bin], full: &[bool], rep: &mut RunReport) -> 
             // symmetric window of a monotone signal is its centre, so a
             // smooth warm-up transient or heating trend is never "motion"
             win.clear();
-            let h = MEDIAN_HALF.min(j).min(n - 1 - j);
+            let (s0, s1) = stretch[j];
+            let h = MEDIAN_HALF.min(j - s0).min(s1 - 1 - j);
             let (lo, hi) = (j - h, j + h + 1);
             win.extend(fb[lo..hi].iter().map(|b| b.gyro[i]));
             dev[j] = fb[j].gyro[i] - median(&mut win);
@@ -80,11 +92,12 @@ pub(crate) fn static_check(bins: &[Bin], full: &[bool], rep: &mut RunReport) -> 
     };
     let mut refd = [0.0; 3];
     for (i, r) in refd.iter_mut().enumerate() {
-        let mut v: Vec<f64> = fb.iter().map(|b| unit(b.accel)[i]).collect();
+        let mut v: Vec<f64> = fb.iter().filter(|b| has_accel(b)).map(|b| unit(b.accel)[i]).collect();
         *r = median(&mut v);
     }
     let refd = unit(refd);
-    for (j, b) in fb.iter().enumerate() {
+    // a recording without an accelerometer has no tilt test
+    for (j, b) in fb.iter().enumerate().filter(|(_, b)| has_accel(b)) {
         let u = unit(b.accel);
         let c = (u[0] * refd[0] + u[1] * refd[1] + u[2] * refd[2]).clamp(-1.0, 1.0);
         let ang = c.acos().to_degrees();

@@ -15,9 +15,13 @@ pub(crate) struct Heating {
 }
 
 const HEAT_GRID: usize = 81;
+/// The self-heating grid's end, s.
+const HEAT_TAU_MAX_S: f64 = 1e5;
 
 /// Least squares of `a + b exp(-t / tau)` with `tau` on a geometric grid
-/// from 10 s to 100 000 s. None with fewer than 3 points or a constant temperature.
+/// from 10 s to 100 000 s. None with fewer than 3 points, a constant
+/// temperature, or no exponential approach (the best time constant at the
+/// grid's end): no self-heating found.
 pub(crate) fn fit_heating(t: &[f64], temp: &[f64]) -> Option<Heating> {
     let n = t.len();
     if n < 3 {
@@ -30,7 +34,7 @@ pub(crate) fn fit_heating(t: &[f64], temp: &[f64]) -> Option<Heating> {
     }
     let mut best: Option<(f64, f64, f64)> = None; // (rss, tau, b)
     for k in 0..HEAT_GRID {
-        let tau = 10f64.powf(1.0 + 4.0 * k as f64 / (HEAT_GRID - 1) as f64);
+        let tau = 10f64.powf(1.0 + (HEAT_TAU_MAX_S.log10() - 1.0) * k as f64 / (HEAT_GRID - 1) as f64);
         let e: Vec<f64> = t.iter().map(|x| (-x / tau).exp()).collect();
         let em = e.iter().sum::<f64>() / n as f64;
         let see: f64 = e.iter().map(|v| (v - em).powi(2)).sum();
@@ -44,7 +48,15 @@ pub(crate) fn fit_heating(t: &[f64], temp: &[f64]) -> Option<Heating> {
             best = Some((rss, tau, b));
         }
     }
-    best.map(|(rss, tau, b)| Heating { rise: -b, tau_s: tau, r2: (1.0 - rss / sst).clamp(0.0, 1.0) })
+    // the best time constant at the grid's end is no exponential approach
+    // at all: over a run much shorter than 10^5 s the curve is a straight
+    // line, and its "rise" an extrapolation (a slow drift is not
+    // self-heating; a flat temperature's noise fits this way)
+    best.filter(|&(_, tau, _)| tau < 0.999 * HEAT_TAU_MAX_S).map(|(rss, tau, b)| Heating {
+        rise: -b,
+        tau_s: tau,
+        r2: (1.0 - rss / sst).clamp(0.0, 1.0),
+    })
 }
 
 /// The slowest warm-up transient this run can tell from its self-heating:
