@@ -110,12 +110,15 @@ fn two_bursts_recover_a_known_slope_within_the_interval() {
         let out = cal.render();
         assert!(out.contains("read as 2 stretches of one power cycle"), "{out}");
     }
-    // 10 s of data say little, but a 20 deg C step still tells a slope to
-    // within about the walk over 30 min (2e-4 x sqrt(1800) / 20 = 4e-4) and
-    // far less than the white noise alone would suggest wrong
+    // 10 s of data bound the walk only loosely: the half-width (0.03 to
+    // 0.09 deg/s/C here) is set by the walk's 95 % upper bound over the
+    // 30-min jump, far above what the true walk would give (2e-4 x
+    // sqrt(1800) / 20 = 4e-4): what these data say without a walk known
+    // beforehand. Still, a 20 deg C step bounds the slope to a fraction of
+    // a deg/s/C.
     let widest = widths.iter().cloned().fold(0.0, f64::max);
     eprintln!("interval half-widths {widths:.4?}");
-    assert!(widest < 0.05, "{widths:?}");
+    assert!(widest < 0.15, "{widths:?}");
 }
 
 /// The CSV reader's errors name the file and the line; an empty

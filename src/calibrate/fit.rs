@@ -111,8 +111,13 @@ fn prepare<'a>(run: &'a Run, warnings: &mut Vec<String>) -> (RunReport, Prepared
     let keep = screen::static_check(&run.bins, &full, &mut rep);
     if !rep.is_static {
         warnings.push(format!(
-            "{}: not static: rotation detected (largest |gyro - local median| {:.3} deg/s at t = {:.0} s, largest tilt {:.2} deg); {:.0} s left out of the fit",
-            run.name, rep.max_rot_dps, rep.max_rot_at_s, rep.max_tilt_deg, rep.moving_s
+            "{}: not static: rotation detected (largest |gyro - local median| {:.3} deg/s at t = {:.0} s, largest tilt {:.2} deg{}); {:.0} s left out of the fit",
+            run.name,
+            rep.max_rot_dps,
+            rep.max_rot_at_s,
+            rep.max_tilt_deg,
+            if rep.max_sd_ratio > 0.0 { format!(", a within-bin gyro SD {:.1} x the run's median", rep.max_sd_ratio) } else { String::new() },
+            rep.moving_s
         ));
     }
     if run.resyncs > 0 {

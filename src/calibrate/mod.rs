@@ -244,6 +244,9 @@ pub struct RunReport {
     pub max_rot_dps: f64,
     pub max_rot_at_s: f64,
     pub max_tilt_deg: f64,
+    /// Largest within-bin gyro standard deviation over the run's median,
+    /// among the bins it marked moving (0 when none).
+    pub max_sd_ratio: f64,
     pub is_static: bool,
     /// Bins with too few samples to count (step 2).
     pub short_bins: usize,

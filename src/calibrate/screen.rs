@@ -71,7 +71,11 @@ pub(crate) fn static_check(bins: &[Bin], full: &[bool], rep: &mut RunReport) -> 
         let run_med = median(&mut all);
         for j in 0..n {
             let d = dev[j].abs();
-            let sd_bad = (sd_med > 0.0 && fb[j].gyro_sd[i] > ROT_SD_RATIO * sd_med) || (fb[j].gyro[i] - run_med).abs() > ROT_ABS_DPS;
+            let sd_ratio = if sd_med > 0.0 { fb[j].gyro_sd[i] / sd_med } else { 0.0 };
+            let sd_bad = sd_ratio > ROT_SD_RATIO || (fb[j].gyro[i] - run_med).abs() > ROT_ABS_DPS;
+            if sd_ratio > ROT_SD_RATIO {
+                rep.max_sd_ratio = rep.max_sd_ratio.max(sd_ratio);
+            }
             if d > thr || sd_bad {
                 moving[j] = true;
                 if d > rep.max_rot_dps {
