@@ -74,7 +74,14 @@ pub fn calibrate_runs(runs: &[Run], order: u8, t0: f64) -> Result<Calibration, C
     let rows: Vec<Rows> = used.iter().map(|&r| prep[r].rows(basis, cuts[r])).collect();
     // a time jump between the rows a run keeps: the walk spans it
     let jumps = rows.iter().any(|r| r.t.windows(2).any(|w| w[1] - w[0] > JUMP_S));
-    let (axes, own) = fit_axes(&rows, order, scale, jumps)?;
+    let pose = pose_spread_deg(&prep, &used);
+    let same_pose = pose <= TILT_LIMIT_DEG;
+    if !same_pose {
+        warnings.push(format!(
+            "the runs lie in different orientations (gravity directions up to {pose:.1} deg apart): a g-sensitive bias differs between them, so their levels do not carry the slope; each run has its own constant (only the temperature's change within the runs tells the slope)"
+        ));
+    }
+    let (axes, own) = fit_axes(&rows, order, scale, jumps, same_pose)?;
     let n = own[0].n;
     let (range, data) = assemble(&prep, &mut reports, &cuts, &used, &own);
     if range.1 - range.0 < MIN_RANGE_C {
@@ -283,7 +290,9 @@ fn warmup_warnings(reports: &[RunReport], warnings: &mut Vec<String>) {
 /// `jumps` (a run read as stretches), the intervals are taken at the walk's
 /// 95 % upper bound too, if wider: the walk across a jump is extrapolated
 /// from what the short stretches show, and they may barely bound it.
-fn fit_axes(rows: &[Rows], order: u8, scale: f64, jumps: bool) -> Result<([AxisFit; 3], Vec<gls::AxisGls>), CalError> {
+/// With `same_pose` false (the runs in different orientations) the levels
+/// are never shared.
+fn fit_axes(rows: &[Rows], order: u8, scale: f64, jumps: bool, same_pose: bool) -> Result<([AxisFit; 3], Vec<gls::AxisGls>), CalError> {
     let order_u = order as usize;
     let d = Design::new(rows, order_u);
     let lams = [0, 1, 2].map(|i| reml_lambda(&d, i));
@@ -300,13 +309,42 @@ fn fit_axes(rows: &[Rows], order: u8, scale: f64, jumps: bool) -> Result<([AxisF
     for i in 0..3 {
         // the curve: one level for all runs, each run's turn-on offset random
         // (step 7), unless the runs' levels say they differ
-        let axis = match shared_axis(&ds, i, lams[i], scale, jumps) {
+        let axis = match same_pose.then(|| shared_axis(&ds, i, lams[i], scale, jumps)).flatten() {
             Some(a) => a.ok_or_else(not_determined)?,
-            None => per_run_axis(&d, &own[i], i, lams[i], scale, jumps),
+            None => per_run_axis(&d, &own[i], i, lams[i], scale, jumps, !same_pose),
         };
         axes.push(AxisFit { rms: (own[i].raw_ss / n as f64).sqrt(), ..axis });
     }
     Ok((axes.try_into().expect("three axes"), own))
+}
+
+/// The largest angle between the runs' gravity directions (the median
+/// direction of each run's specific force over its bins kept), deg; 0 with
+/// one run or without an accelerometer.
+fn pose_spread_deg(prep: &[Prepared<'_>], used: &[usize]) -> f64 {
+    let dirs: Vec<[f64; 3]> = used
+        .iter()
+        .filter_map(|&r| {
+            let bins: Vec<&Bin> = prep[r]
+                .bins
+                .iter()
+                .zip(&prep[r].keep)
+                .filter(|(b, k)| **k && b.accel.iter().all(|v| v.is_finite()))
+                .map(|(b, _)| b)
+                .collect();
+            let m: [f64; 3] = std::array::from_fn(|i| screen::median(&mut bins.iter().map(|b| b.accel[i]).collect::<Vec<_>>()));
+            let n = crate::estimator::quat::norm(&m);
+            (!bins.is_empty() && n > 0.0).then(|| m.map(|v| v / n))
+        })
+        .collect();
+    let mut worst = 0.0f64;
+    for (k, a) in dirs.iter().enumerate() {
+        for b in &dirs[k + 1..] {
+            let c = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).clamp(-1.0, 1.0);
+            worst = worst.max(c.acos().to_degrees());
+        }
+    }
+    worst
 }
 
 /// The fit at the walk's 95 % upper bound (`mu` fixed) and that bound as
@@ -346,8 +384,9 @@ fn shared_axis(ds: &Design<'_>, i: usize, lam0: f64, scale: f64, jumps: bool) ->
     Some(Some(a))
 }
 
-/// One axis with each run its own constant (`own`, the per-run fit at `lam`).
-fn per_run_axis(d: &Design<'_>, own: &gls::AxisGls, i: usize, lam: f64, scale: f64, jumps: bool) -> AxisFit {
+/// One axis with each run its own constant (`own`, the per-run fit at `lam`);
+/// `posed`: because the runs lie in different orientations.
+fn per_run_axis(d: &Design<'_>, own: &gls::AxisGls, i: usize, lam: f64, scale: f64, jumps: bool, posed: bool) -> AxisFit {
     let u_n = d.runs.len();
     let cols: Vec<usize> = (1..=d.order).map(|k| d.poly_col(k)).collect();
     let walk_up = at_walk_upper(d, i, own, lam, 0.0, jumps);
@@ -359,7 +398,7 @@ fn per_run_axis(d: &Design<'_>, own: &gls::AxisGls, i: usize, lam: f64, scale: f
     let sd = if u_n > 1 { (offs.iter().map(|o| (o - mean) * (o - mean)).sum::<f64>() / (u_n - 1) as f64).sqrt() } else { f64::NAN };
     a.p2 = mean;
     a.p2_ci = if u_n > 1 { t975(u_n - 1) * sd / (u_n as f64).sqrt() } else { f64::NAN };
-    a.levels = Levels::PerRun { spread: sd };
+    a.levels = Levels::PerRun { spread: sd, posed };
     a.walk = (lam * own.s2()).sqrt();
     a.walk_upper = walk_upper;
     a

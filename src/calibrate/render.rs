@@ -163,7 +163,10 @@ fn levels_text(l: Levels) -> String {
         Levels::Shared { spread, upper } => {
             format!("levels: one curve, run-to-run turn-on spread {spread:.4} deg/s (at most {upper:.4})")
         }
-        Levels::PerRun { spread } if spread.is_finite() => {
+        Levels::PerRun { spread, posed: true } if spread.is_finite() => {
+            format!("levels: each run its own (turn-on spread {spread:.4} deg/s; the runs lie in different orientations)")
+        }
+        Levels::PerRun { spread, .. } if spread.is_finite() => {
             format!("levels: each run its own (turn-on spread {spread:.4} deg/s, beyond the walks)")
         }
         Levels::PerRun { .. } => "levels: one run".into(),
