@@ -174,16 +174,20 @@ fn levels_text(l: Levels) -> String {
 }
 
 fn heating_line(r: &RunReport) -> String {
+    let jumps = if r.stretches.len() > 1 { " (across the time jumps: the time constant is what the stretches allow)" } else { "" };
     if r.heat_tau_s.is_finite() && r.tau_limit_s < super::TAU_MAX_S {
         format!(
-            "self-heating: {:+.1} deg C, tau {:.0} s -> a warm-up transient must be faster than {:.0} s (tau / {:.0})",
+            "self-heating: {:+.1} deg C, tau {:.0} s{jumps} -> a warm-up transient must be faster than {:.0} s (tau / {:.0})",
             r.heat_rise_c,
             r.heat_tau_s,
             r.tau_limit_s,
             super::FAST_RATIO
         )
     } else if r.heat_tau_s.is_finite() && r.heat_rise_c.abs() >= super::MIN_RISE_C {
-        format!("self-heating: {:+.1} deg C, tau {:.0} s -> warm-up transients up to {:.0} s", r.heat_rise_c, r.heat_tau_s, r.tau_limit_s)
+        format!(
+            "self-heating: {:+.1} deg C, tau {:.0} s{jumps} -> warm-up transients up to {:.0} s",
+            r.heat_rise_c, r.heat_tau_s, r.tau_limit_s
+        )
     } else if r.heat_tau_s.is_finite() {
         format!(
             "self-heating: none found ({:+.2} deg C, under {:.0} deg C) -> warm-up transients up to {:.0} s",
