@@ -41,8 +41,8 @@
 //!    static**.
 //! 4. **Self-heating.** `T(t) = T_end - rise exp(-t / tau_heat)` is fitted
 //!    to the run's temperature (`tau_heat` on a geometric grid, 10 s to
-//!    10^5 s; a best `tau_heat` at the grid's end is no exponential approach:
-//!    no self-heating found). When the run self-heats (`|rise| >= MIN_RISE_C` and the curve
+//!    10^5 s; a best `tau_heat` longer than the run, or at the grid's end,
+//!    is no exponential approach seen: no self-heating found). When the run self-heats (`|rise| >= MIN_RISE_C` and the curve
 //!    explains at least [`MIN_HEAT_R2`] of the temperature variance), a
 //!    warm-up transient of that run may be at most `tau_heat / FAST_RATIO`
 //!    ([`FAST_RATIO`] = 3) slow: a transient as slow as the self-heating is

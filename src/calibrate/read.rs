@@ -125,13 +125,25 @@ pub fn read_run(path: &Path, cfg: &Config) -> Result<Run, CalError> {
     let mut head = [0u8; 4];
     let n = read_up_to(&mut f, &mut head).map_err(open)?;
     let gz = head[..n].starts_with(&[0x1f, 0x8b]);
-    if gz || head[..n].trim_ascii_start().starts_with(b"t,") || head[..n].trim_ascii_start().starts_with(b"t ,") {
+    if gz || is_csv(&head[..n]) {
         let bytes = std::fs::read(path).map_err(open)?;
-        return read_csv_run(&bytes, &name, cfg);
+        let plain =
+            crate::textfile::gunzip(&bytes).map_err(|e| CalError::Input { path: name.clone(), msg: format!("cannot read: {e}") })?;
+        if is_csv(&plain) {
+            return read_csv_run(&plain, &name, cfg);
+        }
+        // a gzipped candump log
+        return read_run_from(&plain[..], &name, cfg);
     }
     drop(f);
     let f = File::open(path).map_err(open)?;
     read_run_from(f, &name, cfg)
+}
+
+/// Whether text starts with the project's CSV header (`t,...`).
+fn is_csv(head: &[u8]) -> bool {
+    let h = head.trim_ascii_start();
+    h.starts_with(b"t,") || h.starts_with(b"t ,")
 }
 
 /// The line number of the first data line of a CSV whose last column (temp) is empty.

@@ -85,7 +85,27 @@ pub(crate) fn static_check(bins: &[Bin], full: &[bool], rep: &mut RunReport) -> 
             }
         }
     }
-    // tilt: angle of each bin's specific force to the run's median direction
+    tilt_check(&fb, &mut moving, rep);
+    // the margin is counted in seconds of time, not in full bins
+    let mut keep: Vec<bool> = full.to_vec();
+    for (j, &m) in moving.iter().enumerate() {
+        if m {
+            // bins are in time order
+            let m = MOVING_MARGIN as f64 * BIN_S + 1e-9;
+            let lo = bins.partition_point(|b| b.t < fb[j].t - m);
+            let hi = bins.partition_point(|b| b.t <= fb[j].t + m);
+            keep[lo..hi].iter_mut().for_each(|k| *k = false);
+        }
+    }
+    rep.moving_s = (0..bins.len()).filter(|&k| full[k] && !keep[k]).count() as f64 * BIN_S;
+    rep.short_bins = full.iter().filter(|f| !**f).count();
+    rep.is_static = rep.moving_s == 0.0;
+    keep
+}
+
+/// Tilt: the angle of each full bin's specific force to the run's median
+/// direction; beyond [`TILT_LIMIT_DEG`] the bin is moving.
+fn tilt_check(fb: &[&Bin], moving: &mut [bool], rep: &mut RunReport) {
     let unit = |a: [f64; 3]| {
         let m = crate::estimator::quat::norm(&a);
         if m > 0.0 {
@@ -113,19 +133,4 @@ pub(crate) fn static_check(bins: &[Bin], full: &[bool], rep: &mut RunReport) -> 
             }
         }
     }
-    // the margin is counted in seconds of time, not in full bins
-    let mut keep: Vec<bool> = full.to_vec();
-    for (j, &m) in moving.iter().enumerate() {
-        if m {
-            // bins are in time order
-            let m = MOVING_MARGIN as f64 * BIN_S + 1e-9;
-            let lo = bins.partition_point(|b| b.t < fb[j].t - m);
-            let hi = bins.partition_point(|b| b.t <= fb[j].t + m);
-            keep[lo..hi].iter_mut().for_each(|k| *k = false);
-        }
-    }
-    rep.moving_s = (0..bins.len()).filter(|&k| full[k] && !keep[k]).count() as f64 * BIN_S;
-    rep.short_bins = full.iter().filter(|f| !**f).count();
-    rep.is_static = rep.moving_s == 0.0;
-    keep
 }
