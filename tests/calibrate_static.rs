@@ -104,7 +104,7 @@ fn two_bursts_recover_a_known_slope_within_the_interval() {
                 slope[i],
                 cal.render()
             );
-            assert!(a.walk_upper.is_finite(), "seed {seed}: the interval is taken at the walk's upper bound");
+            assert!(a.walk_upper.is_finite() && a.walk_upper != 0.0, "seed {seed}: the interval is taken at the walk's upper bound");
             widths.push(a.ci[0]);
         }
         let out = cal.render();

@@ -348,13 +348,15 @@ fn pose_spread_deg(prep: &[Prepared<'_>], used: &[usize]) -> f64 {
 }
 
 /// The fit at the walk's 95 % upper bound (`mu` fixed) and that bound as
-/// deg/s/sqrt(s), when `jumps`.
+/// deg/s/sqrt(s) (negative at the grid's end: not bounded), when `jumps`.
 fn at_walk_upper(d: &Design<'_>, axis: usize, g: &gls::AxisGls, lam: f64, mu: f64, jumps: bool) -> Option<(gls::AxisGls, f64)> {
     if !jumps {
         return None;
     }
     let up = gls::lam_upper(d, axis, lam, mu, g.reml(), MU_UPPER_CHI2).max(lam);
-    fit_axis_mu(d, axis, up, mu).map(|w| (w, (up * g.s2()).sqrt()))
+    // at the grid's end the data do not bound the walk at all: negative
+    let sign = if up >= 0.999 * 10f64.powf(gls::LAM_LOG10.1) { -1.0 } else { 1.0 };
+    fit_axis_mu(d, axis, up, mu).map(|w| (w, sign * (up * g.s2()).sqrt()))
 }
 
 /// One axis with one level for all runs: None when the runs' levels differ

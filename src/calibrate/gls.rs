@@ -330,7 +330,7 @@ pub(crate) fn fit_axis_mu(d: &Design<'_>, axis: usize, lam: f64, mu: f64) -> Opt
 }
 
 /// `lam` grid for the REML search: 0 and 10^-9 .. 10^2, one point a decade.
-const LAM_LOG10: (f64, f64) = (-9.0, 2.0);
+pub(crate) const LAM_LOG10: (f64, f64) = (-9.0, 2.0);
 /// Golden-section steps within +-1 decade of the best grid point (to 0.001 decade).
 const GOLDEN_STEPS: usize = 16;
 

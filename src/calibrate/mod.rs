@@ -192,7 +192,7 @@ pub const INTERVAL_METHOD: &str =
 pub enum CalError {
     #[error("{path}: {msg}")]
     Input { path: String, msg: String },
-    #[error("{} input log(s) refused:\n{}", .0.len(), .0.iter().map(|e| format!("  {e}")).collect::<Vec<_>>().join("\n"))]
+    #[error("{} input(s) refused:\n{}", .0.len(), .0.iter().map(|e| format!("  {e}")).collect::<Vec<_>>().join("\n"))]
     Inputs(Vec<CalError>),
     /// An input error already naming its file and line (`file:line: ...`).
     #[error("{0}")]
@@ -316,7 +316,9 @@ pub struct AxisFit {
     pub white: f64,
     pub walk: f64,
     /// With runs read as stretches: the walk's 95 % upper bound, where the
-    /// interval is also taken (NaN otherwise), deg/s/sqrt(s).
+    /// interval is also taken (NaN otherwise), deg/s/sqrt(s); negative when
+    /// the data do not bound it within the grid (its end, 10 times the white
+    /// noise per sqrt(s), is used).
     pub walk_upper: f64,
 }
 
@@ -349,10 +351,10 @@ pub fn t975(dof: usize) -> f64 {
     }
 }
 
-/// Read the logs and fit. Every refused log is reported (all of them, not just the first).
+/// Read the inputs (logs or CSVs) and fit. Every refused input is reported (all of them, not just the first).
 pub fn calibrate_files(cfg: &Config, inputs: &[PathBuf], order: u8) -> Result<Calibration, CalError> {
     if inputs.is_empty() {
-        return Err(CalError::Fit("no input log".into()));
+        return Err(CalError::Fit("no input".into()));
     }
     let mut runs = Vec::new();
     let mut errs = Vec::new();

@@ -150,7 +150,12 @@ impl Calibration {
 
 /// The walk's upper bound, where the interval is taken too (runs in stretches).
 fn walk_upper_text(up: f64) -> String {
-    if up.is_finite() && up > 0.0 {
+    if up.is_finite() && up < 0.0 {
+        format!(
+            " (not bounded by the few seconds within the stretches: the interval is taken at the grid's end, {:.5}, ten times the white noise per sqrt(s))",
+            -up
+        )
+    } else if up.is_finite() && up > 0.0 {
         format!(" (95 % upper bound {up:.5}: the walk across the time jumps is bounded only by the few seconds within the stretches; the interval is taken there)")
     } else {
         String::new()
