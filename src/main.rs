@@ -66,8 +66,11 @@ enum Cmd {
         /// the curve's reference temperature. Default: the built-in defaults (t0 = 25 C).
         #[arg(long, value_name = "FILE")]
         config: Option<PathBuf>,
-        /// One log per chamber run (one power cycle each), candump -l format. Required.
-        #[arg(long, value_name = "RUN.log", num_args = 1.., required = true)]
+        /// One input per run (one power cycle each): a candump -l log, or a
+        /// recording in the project's CSV format (t,gx,gy,gz,ax,ay,az,mx,my,mz,temp;
+        /// .csv or .csv.gz; the magnetometer may be empty), which may come in
+        /// bursts with time jumps between them. Required.
+        #[arg(long, value_name = "RUN", num_args = 1.., required = true)]
         input: Vec<PathBuf>,
         /// Polynomial order: 1 (linear, as in the paper), 2 or 3.
         #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=3))]

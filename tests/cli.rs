@@ -85,7 +85,7 @@ fn required_options_are_required_and_marked() {
         ("replay", "--input <IN.log> <--output <OUT.log>|--csv <EST.csv>|--mcap <OUT.mcap>>", "--input"),
         ("run", "--config <FILE>", "--config"),
         ("check-config", "<FILE>", "<FILE>"),
-        ("calibrate", "--input <RUN.log>...", "--input"),
+        ("calibrate", "--input <RUN>...", "--input"),
         ("simulate", "--scenario <NAME> --out <DIR>", "--out"),
         ("evaluate", "<--input <DIR>|--seeds <A..B>|--realdata <DIR>>", "--input"),
     ];

@@ -72,7 +72,16 @@ pub fn calibrate_runs(runs: &[Run], order: u8, t0: f64) -> Result<Calibration, C
     // Step 7: the fit after the cuts.
     let used: Vec<usize> = (0..runs.len()).filter(|&r| reports[r].used).collect();
     let rows: Vec<Rows> = used.iter().map(|&r| prep[r].rows(basis, cuts[r])).collect();
-    let (axes, own) = fit_axes(&rows, order, scale)?;
+    // a time jump between the rows a run keeps: the walk spans it
+    let jumps = rows.iter().any(|r| r.t.windows(2).any(|w| w[1] - w[0] > JUMP_S));
+    let pose = pose_spread_deg(&prep, &used);
+    let same_pose = pose <= TILT_LIMIT_DEG;
+    if !same_pose {
+        warnings.push(format!(
+            "the runs lie in different orientations (gravity directions up to {pose:.1} deg apart): a g-sensitive bias differs between them, so their levels do not carry the slope; each run has its own constant (only the temperature's change within the runs tells the slope)"
+        ));
+    }
+    let (axes, own) = fit_axes(&rows, order, scale, jumps, same_pose)?;
     let n = own[0].n;
     let (range, data) = assemble(&prep, &mut reports, &cuts, &used, &own);
     if range.1 - range.0 < MIN_RANGE_C {
@@ -103,12 +112,19 @@ fn prepare<'a>(run: &'a Run, warnings: &mut Vec<String>) -> (RunReport, Prepared
     };
     let (lo, hi) = run.bins.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), b| (l.min(b.temp), h.max(b.temp)));
     rep.temp = (lo, hi);
+    rep.stretches =
+        read::stretches(&run.bins).into_iter().map(|(a, b)| (run.bins[a].t - 0.5 * BIN_S, run.bins[b - 1].t + 0.5 * BIN_S)).collect();
     let full = screen::full_bins(&run.bins);
     let keep = screen::static_check(&run.bins, &full, &mut rep);
     if !rep.is_static {
         warnings.push(format!(
-            "{}: not static: rotation detected (largest |gyro - local median| {:.3} deg/s at t = {:.0} s, largest tilt {:.2} deg); {:.0} s left out of the fit",
-            run.name, rep.max_rot_dps, rep.max_rot_at_s, rep.max_tilt_deg, rep.moving_s
+            "{}: not static: rotation detected (largest |gyro - local median| {:.3} deg/s at t = {:.0} s, largest tilt {:.2} deg{}); {:.0} s left out of the fit",
+            run.name,
+            rep.max_rot_dps,
+            rep.max_rot_at_s,
+            rep.max_tilt_deg,
+            if rep.max_sd_ratio > 0.0 { format!(", a within-bin gyro SD {:.1} x the run's median", rep.max_sd_ratio) } else { String::new() },
+            rep.moving_s
         ));
     }
     if run.resyncs > 0 {
@@ -270,8 +286,13 @@ fn warmup_warnings(reports: &[RunReport], warnings: &mut Vec<String>) {
 }
 
 /// Step 7, per axis: the curve under one of the two level models, and each
-/// run's own constant (the per-run fits, for the runs' reports).
-fn fit_axes(rows: &[Rows], order: u8, scale: f64) -> Result<([AxisFit; 3], Vec<gls::AxisGls>), CalError> {
+/// run's own constant (the per-run fits, for the runs' reports). With
+/// `jumps` (a run read as stretches), the intervals are taken at the walk's
+/// 95 % upper bound too, if wider: the walk across a jump is extrapolated
+/// from what the short stretches show, and they may barely bound it.
+/// With `same_pose` false (the runs in different orientations) the levels
+/// are never shared.
+fn fit_axes(rows: &[Rows], order: u8, scale: f64, jumps: bool, same_pose: bool) -> Result<([AxisFit; 3], Vec<gls::AxisGls>), CalError> {
     let order_u = order as usize;
     let d = Design::new(rows, order_u);
     let lams = [0, 1, 2].map(|i| reml_lambda(&d, i));
@@ -282,43 +303,107 @@ fn fit_axes(rows: &[Rows], order: u8, scale: f64) -> Result<([AxisFit; 3], Vec<g
     };
     // each run's own constant: what each run read at t0 (the per-run report)
     let own = (0..3).map(|i| fit_axis(&d, i, lams[i])).collect::<Option<Vec<_>>>().ok_or_else(not_determined)?;
-    let u_n = rows.len();
     let n = own[0].n;
     let ds = Design::shared(rows, order_u);
     let mut axes = Vec::with_capacity(3);
     for i in 0..3 {
-        let own = &own[i];
         // the curve: one level for all runs, each run's turn-on offset random
         // (step 7), unless the runs' levels say they differ
-        let (lam, mu) = reml_shared(&ds, i, lams[i]);
-        let shared_fit = fit_axis_mu(&ds, i, lam, mu).filter(|g| u_n > 1 && reml_at(&ds, i, lam, 0.0) - g.reml() <= SPREAD_TEST_CHI2);
-        let axis = if let Some(g) = shared_fit {
-            // the interval at the largest spread the runs allow, if wider
-            let up = mu_upper(&ds, i, lam, mu, g.reml(), MU_UPPER_CHI2);
-            let wide = fit_axis_mu(&ds, i, lam, up).ok_or_else(not_determined)?;
-            let s2 = g.s2();
-            let cols: Vec<usize> = (1..=order_u).map(|k| ds.poly_col(k)).collect();
-            let mut a = axis_fit(&g, Some(&wide), &cols, scale);
-            a.p2 = g.beta[0];
-            a.p2_ci = t975(g.n - g.p) * g.se(0).max(wide.se(0)) * inflation(g.rho);
-            a.levels = Levels::Shared { spread: (mu * s2).sqrt(), upper: (up * s2).sqrt() };
-            a.walk = (lam * s2).sqrt();
-            a
-        } else {
-            let cols: Vec<usize> = (1..=order_u).map(|k| d.poly_col(k)).collect();
-            let mut a = axis_fit(own, None, &cols, scale);
-            let offs: Vec<f64> = (0..u_n).map(|q| own.beta[q]).collect();
-            let mean = offs.iter().sum::<f64>() / u_n as f64;
-            let sd = if u_n > 1 { (offs.iter().map(|o| (o - mean) * (o - mean)).sum::<f64>() / (u_n - 1) as f64).sqrt() } else { f64::NAN };
-            a.p2 = mean;
-            a.p2_ci = if u_n > 1 { t975(u_n - 1) * sd / (u_n as f64).sqrt() } else { f64::NAN };
-            a.levels = Levels::PerRun { spread: sd };
-            a.walk = (lams[i] * own.s2()).sqrt();
-            a
+        let axis = match same_pose.then(|| shared_axis(&ds, i, lams[i], scale, jumps)).flatten() {
+            Some(a) => a.ok_or_else(not_determined)?,
+            None => per_run_axis(&d, &own[i], i, lams[i], scale, jumps, !same_pose),
         };
-        axes.push(AxisFit { rms: (own.raw_ss / n as f64).sqrt(), ..axis });
+        axes.push(AxisFit { rms: (own[i].raw_ss / n as f64).sqrt(), ..axis });
     }
     Ok((axes.try_into().expect("three axes"), own))
+}
+
+/// The largest angle between the runs' gravity directions (the median
+/// direction of each run's specific force over its bins kept), deg; 0 with
+/// one run or without an accelerometer.
+fn pose_spread_deg(prep: &[Prepared<'_>], used: &[usize]) -> f64 {
+    let dirs: Vec<[f64; 3]> = used
+        .iter()
+        .filter_map(|&r| {
+            let bins: Vec<&Bin> = prep[r]
+                .bins
+                .iter()
+                .zip(&prep[r].keep)
+                .filter(|(b, k)| **k && b.accel.iter().all(|v| v.is_finite()))
+                .map(|(b, _)| b)
+                .collect();
+            let m: [f64; 3] = std::array::from_fn(|i| screen::median(&mut bins.iter().map(|b| b.accel[i]).collect::<Vec<_>>()));
+            let n = crate::estimator::quat::norm(&m);
+            (!bins.is_empty() && n > 0.0).then(|| m.map(|v| v / n))
+        })
+        .collect();
+    let mut worst = 0.0f64;
+    for (k, a) in dirs.iter().enumerate() {
+        for b in &dirs[k + 1..] {
+            let c = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).clamp(-1.0, 1.0);
+            worst = worst.max(c.acos().to_degrees());
+        }
+    }
+    worst
+}
+
+/// The fit at the walk's 95 % upper bound (`mu` fixed) and that bound as
+/// deg/s/sqrt(s) (negative at the grid's end: not bounded), when `jumps`.
+fn at_walk_upper(d: &Design<'_>, axis: usize, g: &gls::AxisGls, lam: f64, mu: f64, jumps: bool) -> Option<(gls::AxisGls, f64)> {
+    if !jumps {
+        return None;
+    }
+    let up = gls::lam_upper(d, axis, lam, mu, g.reml(), MU_UPPER_CHI2).max(lam);
+    // at the grid's end the data do not bound the walk at all: negative
+    let sign = if up >= 0.999 * 10f64.powf(gls::LAM_LOG10.1) { -1.0 } else { 1.0 };
+    fit_axis_mu(d, axis, up, mu).map(|w| (w, sign * (up * g.s2()).sqrt()))
+}
+
+/// One axis with one level for all runs: None when the runs' levels differ
+/// (or one run); `Some(None)` when the fit at the spread's upper bound is singular.
+fn shared_axis(ds: &Design<'_>, i: usize, lam0: f64, scale: f64, jumps: bool) -> Option<Option<AxisFit>> {
+    let u_n = ds.runs.len();
+    let (lam, mu) = reml_shared(ds, i, lam0);
+    let g = fit_axis_mu(ds, i, lam, mu).filter(|g| u_n > 1 && reml_at(ds, i, lam, 0.0) - g.reml() <= SPREAD_TEST_CHI2)?;
+    // the interval at the largest spread the runs allow, if wider
+    let up = mu_upper(ds, i, lam, mu, g.reml(), MU_UPPER_CHI2);
+    let Some(wide) = fit_axis_mu(ds, i, lam, up) else {
+        return Some(None);
+    };
+    let walk_up = at_walk_upper(ds, i, &g, lam, mu, jumps);
+    let walk_upper = walk_up.as_ref().map_or(f64::NAN, |w| w.1);
+    let wides: Vec<gls::AxisGls> = std::iter::once(wide).chain(walk_up.map(|w| w.0)).collect();
+    let s2 = g.s2();
+    let order = ds.order;
+    let cols: Vec<usize> = (1..=order).map(|k| ds.poly_col(k)).collect();
+    let mut a = axis_fit(&g, &wides, &cols, scale);
+    a.p2 = g.beta[0];
+    let se0 = wides.iter().map(|w| w.se(0)).fold(g.se(0), f64::max);
+    a.p2_ci = t975(g.n - g.p) * se0 * inflation(g.rho);
+    a.levels = Levels::Shared { spread: (mu * s2).sqrt(), upper: (up * s2).sqrt() };
+    a.walk = (lam * s2).sqrt();
+    a.walk_upper = walk_upper;
+    Some(Some(a))
+}
+
+/// One axis with each run its own constant (`own`, the per-run fit at `lam`);
+/// `posed`: because the runs lie in different orientations.
+fn per_run_axis(d: &Design<'_>, own: &gls::AxisGls, i: usize, lam: f64, scale: f64, jumps: bool, posed: bool) -> AxisFit {
+    let u_n = d.runs.len();
+    let cols: Vec<usize> = (1..=d.order).map(|k| d.poly_col(k)).collect();
+    let walk_up = at_walk_upper(d, i, own, lam, 0.0, jumps);
+    let walk_upper = walk_up.as_ref().map_or(f64::NAN, |w| w.1);
+    let wides: Vec<gls::AxisGls> = walk_up.into_iter().map(|w| w.0).collect();
+    let mut a = axis_fit(own, &wides, &cols, scale);
+    let offs: Vec<f64> = (0..u_n).map(|q| own.beta[q]).collect();
+    let mean = offs.iter().sum::<f64>() / u_n as f64;
+    let sd = if u_n > 1 { (offs.iter().map(|o| (o - mean) * (o - mean)).sum::<f64>() / (u_n - 1) as f64).sqrt() } else { f64::NAN };
+    a.p2 = mean;
+    a.p2_ci = if u_n > 1 { t975(u_n - 1) * sd / (u_n as f64).sqrt() } else { f64::NAN };
+    a.levels = Levels::PerRun { spread: sd, posed };
+    a.walk = (lam * own.s2()).sqrt();
+    a.walk_upper = walk_upper;
+    a
 }
 
 /// Step 8: every run's bins with the mask of those used, its seconds and
@@ -366,14 +451,14 @@ fn inflation(rho: f64) -> f64 {
 
 /// The curve's coefficients (columns `cols` of `g`, scaled back by
 /// `scale^k`) with 95 % intervals: Student t times the standard error,
-/// the larger of `g`'s and `wide`'s, times the autocorrelation inflation.
-fn axis_fit(g: &gls::AxisGls, wide: Option<&gls::AxisGls>, cols: &[usize], scale: f64) -> AxisFit {
+/// the largest of `g`'s and the `wides`', times the autocorrelation inflation.
+fn axis_fit(g: &gls::AxisGls, wides: &[gls::AxisGls], cols: &[usize], scale: f64) -> AxisFit {
     let infl = inflation(g.rho);
     let tq = t975(g.n - g.p);
-    let mut a = AxisFit { rho: g.rho, white: g.s2().sqrt(), ..AxisFit::default() };
+    let mut a = AxisFit { rho: g.rho, white: g.s2().sqrt(), walk_upper: f64::NAN, ..AxisFit::default() };
     for (k, &c) in cols.iter().enumerate() {
         let sk = scale.powi(k as i32 + 1);
-        let se = g.se(c).max(wide.map_or(0.0, |w| w.se(c)));
+        let se = wides.iter().map(|w| w.se(c)).fold(g.se(c), f64::max);
         a.coeffs.push(g.beta[c] / sk);
         a.se.push(se * infl / sk);
         a.ci.push(tq * se * infl / sk);

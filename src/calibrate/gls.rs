@@ -330,7 +330,7 @@ pub(crate) fn fit_axis_mu(d: &Design<'_>, axis: usize, lam: f64, mu: f64) -> Opt
 }
 
 /// `lam` grid for the REML search: 0 and 10^-9 .. 10^2, one point a decade.
-const LAM_LOG10: (f64, f64) = (-9.0, 2.0);
+pub(crate) const LAM_LOG10: (f64, f64) = (-9.0, 2.0);
 /// Golden-section steps within +-1 decade of the best grid point (to 0.001 decade).
 const GOLDEN_STEPS: usize = 16;
 
@@ -367,15 +367,28 @@ pub(crate) fn reml_shared(d: &Design<'_>, axis: usize, lam0: f64) -> (f64, f64) 
 /// the upper end of `mu`'s profile interval, found by bisection in log10 up
 /// to the grid's end.
 pub(crate) fn mu_upper(d: &Design<'_>, axis: usize, lam: f64, mu: f64, best: f64, chi2: f64) -> f64 {
-    let reml = |m: f64| reml_at(d, axis, lam, m);
-    let top = 10f64.powf(MU_LOG10.1);
-    if reml(top) - best <= chi2 {
+    upper_log10(MU_LOG10, mu, |m| reml_at(d, axis, lam, m) - best <= chi2)
+}
+
+/// The largest walk-to-white ratio `lam` whose restricted likelihood (at
+/// `mu`) is within `chi2` of `best`, the REML at the estimate `lam`: the
+/// upper end of the walk's profile interval (up to the grid's end). What a
+/// time jump's walk may be when a few short stretches barely say.
+pub(crate) fn lam_upper(d: &Design<'_>, axis: usize, lam: f64, mu: f64, best: f64, chi2: f64) -> f64 {
+    upper_log10(LAM_LOG10, lam, |l| reml_at(d, axis, l, mu) - best <= chi2)
+}
+
+/// Bisection in log10 between the estimate `from` and the end of `range`
+/// for the largest value that `within` accepts.
+fn upper_log10(range: (f64, f64), from: f64, within: impl Fn(f64) -> bool) -> f64 {
+    let top = 10f64.powf(range.1);
+    if within(top) {
         return top;
     }
-    let (mut a, mut b) = (if mu > 0.0 { mu.log10() } else { MU_LOG10.0 - 3.0 }, MU_LOG10.1);
+    let (mut a, mut b) = (if from > 0.0 { from.log10() } else { range.0 - 3.0 }, range.1);
     for _ in 0..30 {
         let c = 0.5 * (a + b);
-        if reml(10f64.powf(c)) - best <= chi2 {
+        if within(10f64.powf(c)) {
             a = c;
         } else {
             b = c;
@@ -384,8 +397,6 @@ pub(crate) fn mu_upper(d: &Design<'_>, axis: usize, lam: f64, mu: f64, best: f64
     10f64.powf(a)
 }
 
-/// Minimise `f(v)` over `v >= 0`: 0 and the decades `10^range.0 .. 10^range.1`,
-/// then a golden-section search (in log10) within +-1 decade of the best.
 fn minimise_log10(range: (f64, f64), f: impl Fn(f64) -> f64) -> f64 {
     let g10 = |l10: f64| f(10f64.powf(l10));
     let steps = (range.1 - range.0).round() as usize;

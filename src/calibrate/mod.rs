@@ -2,8 +2,10 @@
 //!
 //! The paper's procedure (sensor off, chamber set, wait; power on, wait to
 //! working temperature, record; repeat at other ambients; fit, discarding the
-//! fast transient after power-on) as a command. Each input is one candump log
-//! of one power cycle of a static sensor. User documentation with examples:
+//! fast transient after power-on) as a command. Each input is one power cycle
+//! of a static sensor: a candump log, or a recording in the project's CSV
+//! format (`t,gx,gy,gz,ax,ay,az,mx,my,mz,temp`, gzip or not; read by the same
+//! reader as `gyrocomp gap --measured`). User documentation with examples:
 //! `docs/calibrate.md`.
 //!
 //! # What it does, exactly
@@ -15,14 +17,21 @@
 //!    deviation of the gyro and the number of samples. A log is **refused**
 //!    (reported, never fitted) when it cannot be read, has no complete
 //!    sample, more than 1 % of its lines unparseable, more than 1 % of its
-//!    samples failing the checksum, or less than [`MIN_RUN_S`] of data.
+//!    samples failing the checksum, or fewer than [`MIN_FIT_BINS`] seconds of
+//!    data. A CSV's channels calibration does not need (the magnetometer) may
+//!    be empty on any line; its temperature may not (refused with the line).
+//!    Bins follow the timestamps: a recording in **bursts** (time jumps
+//!    longer than [`JUMP_S`] between them) is read as separate *stretches*
+//!    of one power cycle, not as a gap in the samples: nothing is filled in,
+//!    the static check stays within a stretch, and the walk (step 5) spans
+//!    the jumps.
 //! 2. **Short bins decide nothing.** A bin with fewer than
 //!    [`MIN_BIN_FRACTION`] of the run's median samples per bin (the partial
 //!    bin at either end of a log, a bin torn by a gap) is left out of the
 //!    static check and of the fit: one sample is not a 1-s mean.
 //! 3. **Static check** (over the full bins). A bin is *moving* when, on any
 //!    axis, its mean gyro departs from the median of the 31 bins centred on
-//!    it (fewer near the ends of the run, always symmetric, so that a smooth
+//!    it within its stretch (fewer near the stretch's ends, always symmetric, so that a smooth
 //!    monotone trend such as the warm-up transient is never motion) by more than `max(0.05 deg/s, 8 sigma)` (sigma: the run's robust
 //!    scatter of that difference), or its within-bin gyro standard deviation
 //!    exceeds 3 times the run's median, or its mean gyro is more than 5 deg/s
@@ -32,7 +41,8 @@
 //!    static**.
 //! 4. **Self-heating.** `T(t) = T_end - rise exp(-t / tau_heat)` is fitted
 //!    to the run's temperature (`tau_heat` on a geometric grid, 10 s to
-//!    10^5 s). When the run self-heats (`|rise| >= MIN_RISE_C` and the curve
+//!    10^5 s; a best `tau_heat` longer than the run, or at the grid's end,
+//!    is no exponential approach seen: no self-heating found). When the run self-heats (`|rise| >= MIN_RISE_C` and the curve
 //!    explains at least [`MIN_HEAT_R2`] of the temperature variance), a
 //!    warm-up transient of that run may be at most `tau_heat / FAST_RATIO`
 //!    ([`FAST_RATIO`] = 3) slow: a transient as slow as the self-heating is
@@ -79,7 +89,10 @@
 //!    - **each run its own**: `bias = c_run + sum_k a_k (T - t0)^k`, `p2` the
 //!      mean `c_run`: only the changes within runs carry the slope.
 //!
-//!    One curve is used when the levels agree with it: `sigma_u = 0` is not
+//!    One curve is never used when the runs lie in different orientations
+//!    (the median specific-force directions of two runs more than
+//!    [`TILT_LIMIT_DEG`] apart): their levels then differ by a g-sensitive
+//!    bias the curve does not model. Otherwise one curve is used when the levels agree with it: `sigma_u = 0` is not
 //!    rejected (REML drop <= [`SPREAD_TEST_CHI2`], 1 %). `p1 = a_1`,
 //!    `p3 = a_2`, `p4 = a_3`.
 //! 8. **Confidence intervals (95 %).** For `a_k`: `t * SE`, `SE` from the GLS
@@ -91,7 +104,10 @@
 //!    ([`MU_UPPER_CHI2`]): a few runs say little about a spread. For `p2`:
 //!    with one curve its GLS `SE` the same way; else
 //!    `t * sd(c_run) / sqrt(runs)` with runs - 1 degrees of freedom (none
-//!    with one run).
+//!    with one run). When a run keeps a time jump (bursts), the few seconds
+//!    within its stretches bound the walk across the jump only loosely: the
+//!    interval is also computed at the walk's one-sided 95 % upper bound
+//!    (REML profile, [`MU_UPPER_CHI2`]) and the wider one is printed.
 //! 9. **Warnings**: range covered (over the bins used) under 10 deg C, runs
 //!    not static, transients not separable or at the limit, runs left out,
 //!    counter restarts in a log, timestamps going backwards.
@@ -115,8 +131,10 @@ use std::path::{Path, PathBuf};
 
 /// Bin length, seconds.
 pub const BIN_S: f64 = 1.0;
-/// Shortest usable run, seconds of data.
-pub const MIN_RUN_S: f64 = 120.0;
+/// A gap between two bins longer than this (s) is a time jump: the run is
+/// read as separate stretches of one power cycle (the static check's local
+/// median is taken within a stretch; the walk spans the jump).
+pub const JUMP_S: f64 = MEDIAN_HALF as f64 * BIN_S;
 /// Largest fraction of bad lines / checksum failures before a log is refused.
 pub const MAX_BAD_FRACTION: f64 = 0.01;
 /// A bin with fewer than this fraction of the run's median samples per bin decides nothing.
@@ -138,8 +156,12 @@ pub const TRANSIENT_Z: f64 = 5.0;
 pub const CONSISTENT_Z: f64 = 3.0;
 /// Cut = this many time constants.
 pub const CUT_TAUS: f64 = 5.0;
-/// A run with fewer bins than this left for the fit is left out.
-pub const MIN_FIT_BINS: usize = 30;
+/// A run with fewer static seconds than this is refused (when read) or left
+/// out (after the static check and the warm-up cut). Three 1-s bins are the
+/// fewest that tell anything beyond the run's own constant and give the
+/// static check's local median a window; a few seconds' weak information is
+/// what the interval says, not a reason to refuse them.
+pub const MIN_FIT_BINS: usize = 3;
 /// Warn when the temperature range covered is below this, deg C.
 pub const MIN_RANGE_C: f64 = 10.0;
 /// Static check thresholds.
@@ -170,8 +192,11 @@ pub const INTERVAL_METHOD: &str =
 pub enum CalError {
     #[error("{path}: {msg}")]
     Input { path: String, msg: String },
-    #[error("{} input log(s) refused:\n{}", .0.len(), .0.iter().map(|e| format!("  {e}")).collect::<Vec<_>>().join("\n"))]
+    #[error("{} input(s) refused:\n{}", .0.len(), .0.iter().map(|e| format!("  {e}")).collect::<Vec<_>>().join("\n"))]
     Inputs(Vec<CalError>),
+    /// An input error already naming its file and line (`file:line: ...`).
+    #[error("{0}")]
+    Located(String),
     #[error("fit: {0}")]
     Fit(String),
     #[error("cannot write {path}: {msg}")]
@@ -235,9 +260,15 @@ pub struct RunReport {
     pub max_rot_dps: f64,
     pub max_rot_at_s: f64,
     pub max_tilt_deg: f64,
+    /// Largest within-bin gyro standard deviation over the run's median,
+    /// among the bins it marked moving (0 when none).
+    pub max_sd_ratio: f64,
     pub is_static: bool,
     /// Bins with too few samples to count (step 2).
     pub short_bins: usize,
+    /// The run's stretches (s since its first sample, start and end): more
+    /// than one when it was recorded in bursts with time jumps between them.
+    pub stretches: Vec<(f64, f64)>,
 }
 
 /// How the runs' turn-on levels enter one axis's fit (step 7).
@@ -251,12 +282,14 @@ pub enum Levels {
     /// The runs' levels differ beyond their walks (or one run): each run its
     /// own constant; `spread` the constants' standard deviation (deg/s).
     /// Only the temperature's change within the runs carries the slope.
-    PerRun { spread: f64 },
+    /// `posed`: because the runs lie in different orientations (their
+    /// levels then carry a g-sensitive bias), not because they were tested.
+    PerRun { spread: f64, posed: bool },
 }
 
 impl Default for Levels {
     fn default() -> Levels {
-        Levels::PerRun { spread: f64::NAN }
+        Levels::PerRun { spread: f64::NAN, posed: false }
     }
 }
 
@@ -282,6 +315,11 @@ pub struct AxisFit {
     /// Estimated white noise of a 1-s mean, deg/s, and bias random walk, deg/s/sqrt(s).
     pub white: f64,
     pub walk: f64,
+    /// With runs read as stretches: the walk's 95 % upper bound, where the
+    /// interval is also taken (NaN otherwise), deg/s/sqrt(s); negative when
+    /// the data do not bound it within the grid (its end, 10 times the white
+    /// noise per sqrt(s), is used).
+    pub walk_upper: f64,
 }
 
 /// A calibration: the curve, per-run reports, warnings, and the data behind
@@ -313,10 +351,10 @@ pub fn t975(dof: usize) -> f64 {
     }
 }
 
-/// Read the logs and fit. Every refused log is reported (all of them, not just the first).
+/// Read the inputs (logs or CSVs) and fit. Every refused input is reported (all of them, not just the first).
 pub fn calibrate_files(cfg: &Config, inputs: &[PathBuf], order: u8) -> Result<Calibration, CalError> {
     if inputs.is_empty() {
-        return Err(CalError::Fit("no input log".into()));
+        return Err(CalError::Fit("no input".into()));
     }
     let mut runs = Vec::new();
     let mut errs = Vec::new();

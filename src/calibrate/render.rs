@@ -86,6 +86,15 @@ impl Calibration {
                 r.temp.1,
                 if r.bad_lines > 0 { format!(", {} bad lines skipped", r.bad_lines) } else { String::new() }
             );
+            if r.stretches.len() > 1 {
+                let st: Vec<String> = r.stretches.iter().map(|(a, b)| format!("{a:.0}..{b:.0}")).collect();
+                let _ = writeln!(
+                    s,
+                    "  read as {} stretches of one power cycle (s after its first sample: {}); the bias walk spans the time jumps",
+                    r.stretches.len(),
+                    st.join(", ")
+                );
+            }
             let _ = writeln!(s, "  {}", heating_line(r));
             let _ = writeln!(s, "  {}", warmup_line(r));
             let motion = if r.is_static { "static".to_string() } else { format!("NOT STATIC ({:.0} s left out)", r.moving_s) };
@@ -120,13 +129,14 @@ impl Calibration {
                 line += &format!(" p2 = {:.4} deg/s (one run: no interval),", a.p2);
             }
             line += &format!(
-                " residual RMS {:.4} deg/s, range {:.1}..{:.1} deg C ({:.1} deg C); noise: white {:.4} deg/s per 1-s mean, bias walk {:.5} deg/s/sqrt(s); {}",
+                " residual RMS {:.4} deg/s, range {:.1}..{:.1} deg C ({:.1} deg C); noise: white {:.4} deg/s per 1-s mean, bias walk {:.5} deg/s/sqrt(s){}; {}",
                 a.rms,
                 self.range.0,
                 self.range.1,
                 self.range.1 - self.range.0,
                 a.white,
                 a.walk,
+                walk_upper_text(a.walk_upper),
                 levels_text(a.levels)
             );
             let _ = writeln!(s, "{line}");
@@ -138,13 +148,30 @@ impl Calibration {
     }
 }
 
+/// The walk's upper bound, where the interval is taken too (runs in stretches).
+fn walk_upper_text(up: f64) -> String {
+    if up.is_finite() && up < 0.0 {
+        format!(
+            " (not bounded by the few seconds within the stretches: the interval is taken at the grid's end, {:.5}, ten times the white noise per sqrt(s))",
+            -up
+        )
+    } else if up.is_finite() && up > 0.0 {
+        format!(" (95 % upper bound {up:.5}: the walk across the time jumps is bounded only by the few seconds within the stretches; the interval is taken there)")
+    } else {
+        String::new()
+    }
+}
+
 /// How the runs' levels entered the fit.
 fn levels_text(l: Levels) -> String {
     match l {
         Levels::Shared { spread, upper } => {
             format!("levels: one curve, run-to-run turn-on spread {spread:.4} deg/s (at most {upper:.4})")
         }
-        Levels::PerRun { spread } if spread.is_finite() => {
+        Levels::PerRun { spread, posed: true } if spread.is_finite() => {
+            format!("levels: each run its own (turn-on spread {spread:.4} deg/s; the runs lie in different orientations)")
+        }
+        Levels::PerRun { spread, .. } if spread.is_finite() => {
             format!("levels: each run its own (turn-on spread {spread:.4} deg/s, beyond the walks)")
         }
         Levels::PerRun { .. } => "levels: one run".into(),
@@ -152,18 +179,32 @@ fn levels_text(l: Levels) -> String {
 }
 
 fn heating_line(r: &RunReport) -> String {
+    let jumps = if r.stretches.len() > 1 { " (across the time jumps: the time constant is what the stretches allow)" } else { "" };
     if r.heat_tau_s.is_finite() && r.tau_limit_s < super::TAU_MAX_S {
         format!(
-            "self-heating: {:+.1} deg C, tau {:.0} s -> a warm-up transient must be faster than {:.0} s (tau / {:.0})",
+            "self-heating: {:+.1} deg C, tau {:.0} s{jumps} -> a warm-up transient must be faster than {:.0} s (tau / {:.0})",
             r.heat_rise_c,
             r.heat_tau_s,
             r.tau_limit_s,
             super::FAST_RATIO
         )
+    } else if r.heat_tau_s.is_finite() && r.heat_rise_c.abs() >= super::MIN_RISE_C {
+        format!(
+            "self-heating: {:+.1} deg C, tau {:.0} s{jumps} -> warm-up transients up to {:.0} s",
+            r.heat_rise_c, r.heat_tau_s, r.tau_limit_s
+        )
     } else if r.heat_tau_s.is_finite() {
-        format!("self-heating: {:+.1} deg C, tau {:.0} s -> warm-up transients up to {:.0} s", r.heat_rise_c, r.heat_tau_s, r.tau_limit_s)
+        format!(
+            "self-heating: none found ({:+.2} deg C, under {:.0} deg C) -> warm-up transients up to {:.0} s",
+            r.heat_rise_c,
+            super::MIN_RISE_C,
+            r.tau_limit_s
+        )
     } else {
-        format!("self-heating: none (constant temperature) -> warm-up transients up to {:.0} s", r.tau_limit_s)
+        format!(
+            "self-heating: none found (temperature {:.1}..{:.1} deg C, no exponential rise) -> warm-up transients up to {:.0} s",
+            r.temp.0, r.temp.1, r.tau_limit_s
+        )
     }
 }
 

@@ -28,6 +28,10 @@ pub(crate) fn full_bins(bins: &[Bin]) -> Vec<bool> {
     bins.iter().map(|b| b.n as f64 >= MIN_BIN_FRACTION * med).collect()
 }
 
+fn has_accel(b: &Bin) -> bool {
+    b.accel.iter().all(|v| v.is_finite())
+}
+
 /// Static check of one run over its full bins: the keep mask (false for
 /// moving bins, their margin, and bins that are not full); fills the
 /// report's static fields.
@@ -38,6 +42,13 @@ pub(crate) fn static_check(bins: &[Bin], full: &[bool], rep: &mut RunReport) -> 
     let n = fb.len();
     let mut moving = vec![false; n];
     let mut win = Vec::with_capacity(2 * MEDIAN_HALF + 1);
+    // the stretch of each full bin (first, one past the last): the window
+    // stays within it, never across a time jump
+    let owned: Vec<Bin> = fb.iter().map(|b| **b).collect();
+    let mut stretch = vec![(0, 0); n];
+    for (a, b) in super::read::stretches(&owned) {
+        stretch[a..b].iter_mut().for_each(|s| *s = (a, b));
+    }
     for i in 0..3 {
         let mut dev = vec![0.0; n];
         for j in 0..n {
@@ -45,7 +56,8 @@ pub(crate) fn static_check(bins: &[Bin], full: &[bool], rep: &mut RunReport) -> 
             // symmetric window of a monotone signal is its centre, so a
             // smooth warm-up transient or heating trend is never "motion"
             win.clear();
-            let h = MEDIAN_HALF.min(j).min(n - 1 - j);
+            let (s0, s1) = stretch[j];
+            let h = MEDIAN_HALF.min(j - s0).min(s1 - 1 - j);
             let (lo, hi) = (j - h, j + h + 1);
             win.extend(fb[lo..hi].iter().map(|b| b.gyro[i]));
             dev[j] = fb[j].gyro[i] - median(&mut win);
@@ -59,7 +71,11 @@ pub(crate) fn static_check(bins: &[Bin], full: &[bool], rep: &mut RunReport) -> 
         let run_med = median(&mut all);
         for j in 0..n {
             let d = dev[j].abs();
-            let sd_bad = (sd_med > 0.0 && fb[j].gyro_sd[i] > ROT_SD_RATIO * sd_med) || (fb[j].gyro[i] - run_med).abs() > ROT_ABS_DPS;
+            let sd_ratio = if sd_med > 0.0 { fb[j].gyro_sd[i] / sd_med } else { 0.0 };
+            let sd_bad = sd_ratio > ROT_SD_RATIO || (fb[j].gyro[i] - run_med).abs() > ROT_ABS_DPS;
+            if sd_ratio > ROT_SD_RATIO {
+                rep.max_sd_ratio = rep.max_sd_ratio.max(sd_ratio);
+            }
             if d > thr || sd_bad {
                 moving[j] = true;
                 if d > rep.max_rot_dps {
@@ -69,33 +85,7 @@ pub(crate) fn static_check(bins: &[Bin], full: &[bool], rep: &mut RunReport) -> 
             }
         }
     }
-    // tilt: angle of each bin's specific force to the run's median direction
-    let unit = |a: [f64; 3]| {
-        let m = crate::estimator::quat::norm(&a);
-        if m > 0.0 {
-            a.map(|v| v / m)
-        } else {
-            [0.0; 3]
-        }
-    };
-    let mut refd = [0.0; 3];
-    for (i, r) in refd.iter_mut().enumerate() {
-        let mut v: Vec<f64> = fb.iter().map(|b| unit(b.accel)[i]).collect();
-        *r = median(&mut v);
-    }
-    let refd = unit(refd);
-    for (j, b) in fb.iter().enumerate() {
-        let u = unit(b.accel);
-        let c = (u[0] * refd[0] + u[1] * refd[1] + u[2] * refd[2]).clamp(-1.0, 1.0);
-        let ang = c.acos().to_degrees();
-        rep.max_tilt_deg = rep.max_tilt_deg.max(ang);
-        if ang > TILT_LIMIT_DEG {
-            moving[j] = true;
-            if rep.max_rot_dps == 0.0 && rep.max_rot_at_s == 0.0 {
-                rep.max_rot_at_s = b.t;
-            }
-        }
-    }
+    tilt_check(&fb, &mut moving, rep);
     // the margin is counted in seconds of time, not in full bins
     let mut keep: Vec<bool> = full.to_vec();
     for (j, &m) in moving.iter().enumerate() {
@@ -111,4 +101,36 @@ pub(crate) fn static_check(bins: &[Bin], full: &[bool], rep: &mut RunReport) -> 
     rep.short_bins = full.iter().filter(|f| !**f).count();
     rep.is_static = rep.moving_s == 0.0;
     keep
+}
+
+/// Tilt: the angle of each full bin's specific force to the run's median
+/// direction; beyond [`TILT_LIMIT_DEG`] the bin is moving.
+fn tilt_check(fb: &[&Bin], moving: &mut [bool], rep: &mut RunReport) {
+    let unit = |a: [f64; 3]| {
+        let m = crate::estimator::quat::norm(&a);
+        if m > 0.0 {
+            a.map(|v| v / m)
+        } else {
+            [0.0; 3]
+        }
+    };
+    let mut refd = [0.0; 3];
+    for (i, r) in refd.iter_mut().enumerate() {
+        let mut v: Vec<f64> = fb.iter().filter(|b| has_accel(b)).map(|b| unit(b.accel)[i]).collect();
+        *r = median(&mut v);
+    }
+    let refd = unit(refd);
+    // a recording without an accelerometer has no tilt test
+    for (j, b) in fb.iter().enumerate().filter(|(_, b)| has_accel(b)) {
+        let u = unit(b.accel);
+        let c = (u[0] * refd[0] + u[1] * refd[1] + u[2] * refd[2]).clamp(-1.0, 1.0);
+        let ang = c.acos().to_degrees();
+        rep.max_tilt_deg = rep.max_tilt_deg.max(ang);
+        if ang > TILT_LIMIT_DEG {
+            moving[j] = true;
+            if rep.max_rot_dps == 0.0 && rep.max_rot_at_s == 0.0 {
+                rep.max_rot_at_s = b.t;
+            }
+        }
+    }
 }

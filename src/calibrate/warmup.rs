@@ -15,9 +15,13 @@ pub(crate) struct Heating {
 }
 
 const HEAT_GRID: usize = 81;
+/// The self-heating grid's end, s.
+const HEAT_TAU_MAX_S: f64 = 1e5;
 
 /// Least squares of `a + b exp(-t / tau)` with `tau` on a geometric grid
-/// from 10 s to 100 000 s. None with fewer than 3 points or a constant temperature.
+/// from 10 s to 100 000 s. None with fewer than 3 points, a constant
+/// temperature, or no exponential approach seen (the best time constant
+/// longer than the run, or at the grid's end): no self-heating found.
 pub(crate) fn fit_heating(t: &[f64], temp: &[f64]) -> Option<Heating> {
     let n = t.len();
     if n < 3 {
@@ -30,7 +34,7 @@ pub(crate) fn fit_heating(t: &[f64], temp: &[f64]) -> Option<Heating> {
     }
     let mut best: Option<(f64, f64, f64)> = None; // (rss, tau, b)
     for k in 0..HEAT_GRID {
-        let tau = 10f64.powf(1.0 + 4.0 * k as f64 / (HEAT_GRID - 1) as f64);
+        let tau = 10f64.powf(1.0 + (HEAT_TAU_MAX_S.log10() - 1.0) * k as f64 / (HEAT_GRID - 1) as f64);
         let e: Vec<f64> = t.iter().map(|x| (-x / tau).exp()).collect();
         let em = e.iter().sum::<f64>() / n as f64;
         let see: f64 = e.iter().map(|v| (v - em).powi(2)).sum();
@@ -44,7 +48,16 @@ pub(crate) fn fit_heating(t: &[f64], temp: &[f64]) -> Option<Heating> {
             best = Some((rss, tau, b));
         }
     }
-    best.map(|(rss, tau, b)| Heating { rise: -b, tau_s: tau, r2: (1.0 - rss / sst).clamp(0.0, 1.0) })
+    // a time constant longer than the run (or at the grid's end) is no
+    // exponential approach seen: over less than one time constant the curve
+    // is a straight line, and its "rise" an extrapolation (a slow drift, or
+    // a flat temperature's quantisation steps, fit this way)
+    let span = t[n - 1] - t[0];
+    best.filter(|&(_, tau, _)| tau <= span && tau < 0.999 * HEAT_TAU_MAX_S).map(|(rss, tau, b)| Heating {
+        rise: -b,
+        tau_s: tau,
+        r2: (1.0 - rss / sst).clamp(0.0, 1.0),
+    })
 }
 
 /// The slowest warm-up transient this run can tell from its self-heating:
@@ -179,5 +192,16 @@ mod tests {
         // no self-heating: the general limit
         let flat = vec![25.0; 600];
         assert_eq!(tau_limit(fit_heating(&t, &flat).as_ref()), TAU_MAX_S);
+    }
+
+    /// A flat temperature with quantisation steps and a slight drift (an
+    /// MPU6050 at room temperature) is no self-heating: once printed as
+    /// "-79.1 deg C, tau 100000 s" (the fit at its grid's end), and a drift
+    /// as a rise of 12.8 deg C with tau 15849 s over 130 s.
+    #[test]
+    fn a_flat_drifting_temperature_is_no_self_heating() {
+        let t: Vec<f64> = (0..130).map(|k| k as f64 + 0.5).collect();
+        let temp: Vec<f64> = t.iter().map(|x| 25.2 + ((0.0008 * x) * 340.0).round() / 340.0).collect();
+        assert!(fit_heating(&t, &temp).is_none(), "{:?}", fit_heating(&t, &temp));
     }
 }
