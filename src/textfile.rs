@@ -5,6 +5,19 @@
 use std::io;
 use std::path::Path;
 
+/// Read into `buf` until it is full or the reader ends (a short first
+/// read is not the end): the bytes read.
+pub fn read_up_to(r: &mut impl io::Read, buf: &mut [u8]) -> io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..])? {
+            0 => break,
+            k => n += k,
+        }
+    }
+    Ok(n)
+}
+
 /// The file as a string; a file that is not UTF-8 is an `InvalidData` error
 /// naming the line, column and byte where it stops being text.
 pub fn read(path: &Path) -> io::Result<String> {

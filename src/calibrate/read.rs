@@ -123,7 +123,7 @@ pub fn read_run(path: &Path, cfg: &Config) -> Result<Run, CalError> {
     let open = |e: io::Error| CalError::Input { path: name.clone(), msg: format!("cannot open: {e}") };
     let mut f = File::open(path).map_err(open)?;
     let mut head = [0u8; 4];
-    let n = read_up_to(&mut f, &mut head).map_err(open)?;
+    let n = crate::textfile::read_up_to(&mut f, &mut head).map_err(open)?;
     let gz = head[..n].starts_with(&[0x1f, 0x8b]);
     if gz || is_csv(&head[..n]) {
         let bytes = std::fs::read(path).map_err(open)?;
@@ -153,18 +153,6 @@ fn first_empty_temp_line(bytes: &[u8]) -> Option<usize> {
     let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
     lines.next()?;
     lines.find(|(_, l)| l.rsplit(',').next().is_some_and(|v| v.trim().is_empty())).map(|(i, _)| i + 1)
-}
-
-fn read_up_to(f: &mut File, buf: &mut [u8]) -> io::Result<usize> {
-    use io::Read;
-    let mut n = 0;
-    while n < buf.len() {
-        match f.read(&mut buf[n..])? {
-            0 => break,
-            k => n += k,
-        }
-    }
-    Ok(n)
 }
 
 /// A recording in the project's CSV format (its bytes, gzip recognised)

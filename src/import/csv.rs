@@ -10,7 +10,7 @@
 //! Gzip input (`.gz`) is recognised by its magic bytes, whatever the name.
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufRead, BufReader};
 use std::path::Path;
 
 /// The columns this reader knows, in the contract's order.
@@ -22,24 +22,13 @@ const REQUIRED: usize = 7;
 pub fn open_text(path: &Path) -> Result<Box<dyn BufRead>, String> {
     let mut f = File::open(path).map_err(|e| format!("cannot open {}: {e}", path.display()))?;
     let mut magic = [0u8; 2];
-    let n = read_up_to(&mut f, &mut magic).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let n = crate::textfile::read_up_to(&mut f, &mut magic).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
     let f = File::open(path).map_err(|e| format!("cannot open {}: {e}", path.display()))?;
     if n == 2 && magic == [0x1f, 0x8b] {
         Ok(Box::new(BufReader::with_capacity(1 << 16, flate2::read::MultiGzDecoder::new(BufReader::new(f)))))
     } else {
         Ok(Box::new(BufReader::with_capacity(1 << 16, f)))
     }
-}
-
-fn read_up_to(f: &mut File, buf: &mut [u8]) -> std::io::Result<usize> {
-    let mut n = 0;
-    while n < buf.len() {
-        match f.read(&mut buf[n..])? {
-            0 => break,
-            k => n += k,
-        }
-    }
-    Ok(n)
 }
 
 /// A body-axis mapping onto FRD: `x,-y,-z` means FRD x = source x,
