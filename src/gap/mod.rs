@@ -112,14 +112,15 @@ pub enum Truth {
     Static { bandwidth: f64 },
 }
 
-/// Read the measured file and derive the truth (`truth` as `Simulated` reads `o.truth`).
-pub fn load_trial(o: &GapOptions, truth: &Truth, profile: &Profile) -> Result<refdata::Derived, String> {
-    let truth = match truth {
-        Truth::Simulated(p) => TruthSource::Simulated(Source::File(p.clone())),
-        Truth::Reference { path, bandwidth } => TruthSource::Reference { source: Source::File(path.clone()), bandwidth: *bandwidth },
-        Truth::Static { bandwidth } => TruthSource::Static { bandwidth: *bandwidth },
-    };
-    inputs::load(&Source::File(o.measured.clone()), &truth, profile)
+impl Truth {
+    /// The same truth as [`inputs`] reads it: its file as a [`Source`].
+    pub fn source(&self) -> TruthSource {
+        match self {
+            Truth::Simulated(p) => TruthSource::Simulated(Source::File(p.clone())),
+            Truth::Reference { path, bandwidth } => TruthSource::Reference { source: Source::File(path.clone()), bandwidth: *bandwidth },
+            Truth::Static { bandwidth } => TruthSource::Static { bandwidth: *bandwidth },
+        }
+    }
 }
 
 /// Run the workflow on files and write the outputs.
@@ -132,9 +133,7 @@ pub fn run_with(o: &GapOptions, truth: &Truth) -> Result<GapResult, String> {
     let start = std::time::Instant::now();
     let profile = builtin_profile(&o.profile).ok_or_else(|| format!("unknown profile {:?}", o.profile))?;
     let base = load_base(&o.model)?;
-    let d = load_trial(o, truth, &profile)?;
-    let derived = (!matches!(truth, Truth::Simulated(_))).then_some(&d.info);
-    let mut res = analyse_with(&d.meas, &d.truth, d.truth_has_temp, &base, &profile, derived)?;
+    let mut res = inputs::trial("", &Source::File(o.measured.clone()), &truth.source(), &base, &profile)?.result;
     let plots = if o.plots { res.plots.as_ref() } else { None };
     res.files = report::write_outputs(o, &res.report, &res.model, plots)?;
     res.elapsed_s = start.elapsed().as_secs_f64();

@@ -24,7 +24,7 @@ use super::fit::{all_terms, Term, AX};
 use super::name::T_MIN;
 use super::read::{has_table, load_base};
 use super::refdata::Derived;
-use super::{load_trial, prepare, report, GapOptions, GapResult, Truth};
+use super::{inputs, prepare, report, GapOptions, GapResult, Source, Truth};
 use crate::adis::{builtin_profile, Profile};
 use crate::sim::model::{Effect, GyroModel, SensorModel};
 use serde::Serialize;
@@ -326,12 +326,9 @@ pub fn cli(trials_in: &[(PathBuf, Truth)], model: &Path, out: &Path, profile_nam
             profile: profile_name.into(),
             plots: true,
         };
-        let data = load_trial(&o, truth, &profile).map_err(|e| format!("{name}: {e}"))?;
-        let derived = (!matches!(truth, Truth::Simulated(_))).then_some(&data.info);
-        let mut result = super::analyse_with(&data.meas, &data.truth, data.truth_has_temp, &base, &profile, derived)
-            .map_err(|e| format!("{name}: {e}"))?;
-        result.files = report::write_outputs(&o, &result.report, &result.model, result.plots.as_ref())?;
-        trials.push(Trial { name: name.clone(), data, result });
+        let mut t = inputs::trial(name, &Source::File(m.clone()), &truth.source(), &base, &profile).map_err(|e| format!("{name}: {e}"))?;
+        t.result.files = report::write_outputs(&o, &t.result.report, &t.result.model, t.result.plots.as_ref())?;
+        trials.push(t);
     }
     let j = joint(&trials, &base, &profile)?;
     let text = super::trials_report::render(&trials, &j.rows, &j.leave_one_out, model, out);
