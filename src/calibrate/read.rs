@@ -135,8 +135,7 @@ pub fn read_run(path: &Path, cfg: &Config) -> Result<Run, CalError> {
         // a gzipped candump log
         return read_run_from(&plain[..], &name, cfg);
     }
-    drop(f);
-    let f = File::open(path).map_err(open)?;
+    io::Seek::rewind(&mut f).map_err(open)?;
     read_run_from(f, &name, cfg)
 }
 
