@@ -125,8 +125,16 @@ impl OutFile {
         let (tmp, f) = match target(dest)? {
             Target::Replace(real) => {
                 let path = tmp_name(&real)?;
-                let f = OpenOptions::new().write(true).create_new(true).open(&path)?;
+                // registered before it exists: a signal between the two
+                // would otherwise end the process with the file left behind
                 let slot = signals::register(&path);
+                let f = match OpenOptions::new().write(true).create_new(true).open(&path) {
+                    Ok(f) => f,
+                    Err(e) => {
+                        signals::unregister(slot);
+                        return Err(e);
+                    }
+                };
                 (Some(Tmp { path, real, slot }), f)
             }
             Target::Device(p) => (None, OpenOptions::new().write(true).open(p)?),
